@@ -1,0 +1,44 @@
+"""Where the project's data directories are, installed or in a source tree.
+
+The wheel carries ``ontology/``, ``shapes/`` and ``queries/`` under
+``stepnc_graph/data/``; an editable install or a checkout finds them at the
+repository root. ``STEPNC_GRAPH_DATA`` overrides both (a directory holding the
+three folders).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+_PACKAGE = Path(__file__).resolve().parent
+_CANDIDATES = (_PACKAGE / "data", _PACKAGE.parent.parent)
+
+
+def data_root() -> Path:
+    override = os.environ.get("STEPNC_GRAPH_DATA")
+    if override:
+        return Path(override)
+    for candidate in _CANDIDATES:
+        if (candidate / "ontology" / "express" / "schemas.toml").is_file():
+            return candidate
+    raise FileNotFoundError(
+        "stepnc-graph data (ontology/express/schemas.toml) not found; reinstall the package "
+        "or set STEPNC_GRAPH_DATA to a directory containing ontology/, shapes/ and queries/"
+    )
+
+
+def ontology_dir() -> Path:
+    return data_root() / "ontology"
+
+
+def express_dir() -> Path:
+    return ontology_dir() / "express"
+
+
+def shapes_dir() -> Path:
+    return data_root() / "shapes"
+
+
+def queries_dir() -> Path:
+    return data_root() / "queries"
