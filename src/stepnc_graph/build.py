@@ -1,0 +1,60 @@
+"""Regenerate (or check) every generated artefact from ``ontology/express/``.
+
+Paths are relative to a project root: ``ontology/*.ttl``,
+``docs/ontology.html`` and ``src/stepnc_graph/vocab.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from stepnc_graph.generators.html import HtmlReferenceGenerator
+from stepnc_graph.generators.owl import OwlGenerator
+from stepnc_graph.generators.p21 import P21VocabularyGenerator
+from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
+from stepnc_graph.naming import Naming
+from stepnc_graph.schema.catalog import load_catalog_model
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    written: tuple[str, ...]
+    unchanged: tuple[str, ...]
+    stale: tuple[str, ...]  # differ from a fresh build (check mode) or were rewritten
+
+
+def generate(express_directory: Path | None = None) -> dict[str, str]:
+    """All generated files, keyed by path relative to the project root."""
+    catalog, model = load_catalog_model(express_directory)
+    naming = Naming(catalog.namespace, catalog.ontology_base)
+    out: dict[str, str] = {}
+    for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
+        out[f"ontology/{rel}"] = text
+    for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
+        out[f"ontology/{rel}"] = text
+    for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():
+        out[f"docs/{rel}"] = text
+    for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
+        out[f"src/stepnc_graph/{rel}"] = text
+    return out
+
+
+def build(root: Path, check: bool = False) -> BuildResult:
+    """Write the generated files under ``root``; with ``check`` only compare."""
+    files = generate(root / "ontology" / "express")
+    written, unchanged, stale = [], [], []
+    for rel, text in sorted(files.items()):
+        if not rel.startswith("ontology/") and not (root / rel.split("/")[0]).is_dir():
+            continue  # an installed data directory has no src/ or docs/ to refresh
+        path = root / rel
+        current = path.read_text(encoding="utf-8") if path.exists() else None
+        if current == text:
+            unchanged.append(rel)
+            continue
+        stale.append(rel)
+        if not check:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+            written.append(rel)
+    return BuildResult(tuple(written), tuple(unchanged), tuple(stale))

@@ -1,0 +1,59 @@
+"""Every IRI stepnc-graph mints is minted here.
+
+Scheme (documented in ``ontology/README.md``, stable for good):
+
+* vocabulary terms live in one namespace, ``.../iso14649#``, whatever schema
+  declares them (names are unique across the model, and analysts should not
+  need to know which part of ISO 14649 a term comes from to write a query);
+* a local name is the EXPRESS name in lower case: ``stepnc:outer_diameter``;
+* members are scoped by their owner with a dot: the attribute ``its_id`` of
+  ``machining_operation`` is ``stepnc:machining_operation.its_id``; the
+  enumeration item ``tcp`` of ``feedrate_reference`` is
+  ``stepnc:feedrate_reference.tcp`` (entity/type names never contain dots, so
+  the two cannot collide);
+* each schema is an ontology ``.../iso14649/<schema_name>``;
+* Part 21 structure (ids, lines, unset list members, ...) uses the ``p21:``
+  vocabulary of :mod:`stepnc_graph.p21vocab`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rdflib import Namespace, URIRef
+
+STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
+ONTOLOGY_BASE = "https://w3id.org/stepnc-graph/iso14649/"
+P21_NS = "https://w3id.org/stepnc-graph/p21#"
+P21_ONTOLOGY = "https://w3id.org/stepnc-graph/p21"
+
+STEPNC = Namespace(STEPNC_NS)
+P21 = Namespace(P21_NS)
+
+
+@dataclass(frozen=True)
+class Naming:
+    """IRI minting for one vocabulary namespace (the shipped one by default)."""
+
+    namespace: str = STEPNC_NS
+    ontology_base: str = ONTOLOGY_BASE
+
+    def declaration(self, name: str) -> URIRef:
+        """An entity, defined type, enumeration or select."""
+        return URIRef(self.namespace + name.lower())
+
+    def attribute(self, entity: str, attribute: str) -> URIRef:
+        return URIRef(f"{self.namespace}{entity.lower()}.{attribute.lower()}")
+
+    def enum_item(self, enumeration: str, item: str) -> URIRef:
+        return URIRef(f"{self.namespace}{enumeration.lower()}.{item.lower()}")
+
+    def ontology(self, schema: str) -> URIRef:
+        return URIRef(self.ontology_base + schema.lower())
+
+    def ontology_version(self, schema: str, version: str) -> URIRef:
+        return URIRef(f"{self.ontology_base}{schema.lower()}/{version}")
+
+    def local_name(self, iri: str) -> str | None:
+        """The local part of a vocabulary IRI, or None for a foreign IRI."""
+        return iri[len(self.namespace):] if iri.startswith(self.namespace) else None

@@ -1,0 +1,54 @@
+"""The ``p21:`` vocabulary: how EXPRESS and Part 21 structure shows in RDF.
+
+Defined once here as data; ``ontology/p21.ttl`` and the ``P21`` class of
+:mod:`stepnc_graph.vocab` are generated from it. Kinds: ``annotation`` (on
+ontology terms), ``data``/``object`` (on loaded instances), ``class``,
+``individual``, ``datatype``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Term(NamedTuple):
+    name: str
+    kind: str
+    comment: str
+
+
+TERMS: tuple[Term, ...] = (
+    # annotations on vocabulary terms
+    Term("expressName", "annotation", "The name of the declaration, attribute or enumeration item in the EXPRESS schema."),
+    Term("expressKind", "annotation", "What the EXPRESS declaration is: ENTITY, DEFINED_TYPE, ENUMERATION or SELECT."),
+    Term("expressType", "annotation", "The attribute's type as written in EXPRESS, e.g. 'LIST [2:?] OF manufacturing_feature'."),
+    Term("schema", "annotation", "The name of the EXPRESS schema that declares the term."),
+    Term("isoPart", "annotation", "The part of ISO 14649 or ISO 10303 the declaring schema belongs to."),
+    Term("isoClause", "annotation", "The clause of the source document that describes the term, where known."),
+    Term("abstract", "annotation", "True for an ABSTRACT entity: instances must belong to a subtype."),
+    Term("supertypeExpression", "annotation", "The entity's SUPERTYPE OF expression as written in EXPRESS."),
+    Term("declaredBy", "annotation", "The entity class that declares the attribute."),
+    Term("attributeKind", "annotation", "explicit, derived or inverse."),
+    Term("position", "annotation", "1-based place of the attribute in the Part 21 record of the declaring entity."),
+    Term("optional", "annotation", "True when the attribute is OPTIONAL (Part 21 may write $)."),
+    Term("aggregate", "annotation", "The aggregate kind and bounds of the attribute, e.g. 'LIST [2:?]'; nested ones separated by ' OF '."),
+    Term("elementType", "annotation", "The class or datatype of the members of an aggregate-valued attribute."),
+    Term("derivation", "annotation", "The DERIVE expression of a derived attribute, as EXPRESS source."),
+    Term("inverseFor", "annotation", "The forward attribute property an INVERSE attribute inverts."),
+    Term("underlyingDatatype", "annotation", "For a defined type: the XSD datatype its values are written with."),
+    Term("underlyingType", "annotation", "For a defined type: its underlying type as written in EXPRESS."),
+    Term("whereRule", "annotation", "A WHERE rule of the declaration, 'label: expression' in EXPRESS source."),
+    Term("uniqueRule", "annotation", "A UNIQUE rule of the entity, 'label: attributes'."),
+    Term("redeclaration", "annotation", "An attribute the entity redeclares, as 'SELF\\supertype.attribute : type'."),
+    # instance-level structure (used by the Part 21 loader)
+    Term("id", "data", "The instance name (#id) the instance has in its Part 21 file, without '#'."),
+    Term("line", "data", "The line of the Part 21 file where the instance starts."),
+    Term("derivedValue", "object", "An attribute written '*' in Part 21 because a subtype derives it."),
+    Term("emptyAggregate", "object", "An attribute whose SET value is the empty set '()' (SETs are otherwise repeated triples)."),
+    Term("value", "data", "The literal inside a typed value node, e.g. the 2.5 of LENGTH_MEASURE(2.5)."),
+    Term("TypedValue", "class", "A value written with its defined type's name, as Part 21 does inside a SELECT."),
+    Term("RawInstance", "class", "An instance kept verbatim because it does not fit the schema; see p21:rawText."),
+    Term("rawText", "data", "The Part 21 text of an instance that could not be mapped to the schema."),
+    Term("unset", "individual", "An unset ($) member of an ARRAY with OPTIONAL elements."),
+    Term("logicalUnknown", "datatype", "Datatype of the LOGICAL value UNKNOWN, the only member of its value space: \"UNKNOWN\"^^p21:logicalUnknown."),
+)

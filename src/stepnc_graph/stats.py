@@ -1,0 +1,75 @@
+"""Coverage of the ontology: EXPRESS counts next to counts read back from the Turtle.
+
+The two sides are computed independently -- one from the resolved model, one
+by querying the generated ``ontology/*.ttl`` files -- so a generator that drops
+a declaration shows as a mismatch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from rdflib import Graph, URIRef
+
+from stepnc_graph.schema.catalog import load_catalog_model
+
+_COUNT = """
+PREFIX p21: <https://w3id.org/stepnc-graph/p21#>
+PREFIX rdfs: <http://www.w3.org/2000/01/rdf-schema#>
+SELECT
+  (COUNT(DISTINCT ?entity) AS ?entities)
+  (COUNT(DISTINCT ?type) AS ?types)
+  (COUNT(DISTINCT ?attribute) AS ?attributes)
+WHERE {
+  { ?entity p21:expressKind "ENTITY" ; rdfs:isDefinedBy ?o }
+  UNION
+  { ?type p21:expressKind ?k ; rdfs:isDefinedBy ?o FILTER(?k != "ENTITY") }
+  UNION
+  { ?attribute p21:declaredBy ?d ; rdfs:isDefinedBy ?o }
+}
+"""
+
+
+@dataclass(frozen=True)
+class SchemaStats:
+    schema: str
+    express_entities: int
+    express_types: int
+    express_attributes: int
+    owl_entities: int
+    owl_types: int
+    owl_attributes: int
+
+    @property
+    def complete(self) -> bool:
+        return (self.express_entities, self.express_types, self.express_attributes) == (
+            self.owl_entities, self.owl_types, self.owl_attributes)
+
+    def asdict(self) -> dict[str, Any]:
+        return {**asdict(self), "complete": self.complete}
+
+
+def ontology_stats(root: Path) -> list[SchemaStats]:
+    catalog, model = load_catalog_model(root / "ontology" / "express")
+    out = []
+    for name in sorted(model.schemas):
+        decls = model.in_schema(name)
+        entities = [d for d in decls if d.name in model.entities]
+        g = Graph()
+        ttl = root / "ontology" / f"{name}.ttl"
+        if ttl.exists():
+            g.parse(ttl, format="turtle")
+        ontology = URIRef(catalog.ontology_base + name)
+        row = next(iter(g.query(_COUNT, initBindings={"o": ontology})))
+        out.append(SchemaStats(
+            schema=name,
+            express_entities=len(entities),
+            express_types=len(decls) - len(entities),
+            express_attributes=sum(len(model.entity(e.name).attributes) for e in entities),
+            owl_entities=int(row[0]),  # type: ignore[index]
+            owl_types=int(row[1]),  # type: ignore[index]
+            owl_attributes=int(row[2]),  # type: ignore[index]
+        ))
+    return out
