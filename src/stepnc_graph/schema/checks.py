@@ -122,7 +122,9 @@ def check_cycles(model: SchemaModel) -> list[SchemaError]:
             for m in t.members:
                 if not isinstance(model.get(m), Entity):
                     g.add_edge(t.name, m)
-    for cycle in nx.simple_cycles(g):
+    for found in nx.simple_cycles(g):
+        k = found.index(min(found))
+        cycle = found[k:] + found[:k]  # start at the smallest name: stable reports
         first = model[cycle[0]]
         errors.append(SchemaError("type cycle: " + " -> ".join([*cycle, cycle[0]]), first.pos, first.schema))
     return errors

@@ -174,16 +174,26 @@ class SchemaModel:
 
     # -- attributes -------------------------------------------------------
 
+    def linearization(self, name: str) -> tuple[str, ...]:
+        """The entity and its supertypes, supertypes first, in SUBTYPE OF order, each once.
+
+        This is the order ISO 10303-21 12.2.4.1 lists inherited attributes in,
+        and the order every attribute listing of this model follows.
+        """
+        out: list[str] = []
+
+        def visit(entity: str) -> None:
+            for st in self.entity(entity).supertypes:
+                visit(st)
+            if entity not in out:
+                out.append(entity)
+
+        visit(name.lower())
+        return tuple(out)
+
     def all_attributes(self, name: str) -> tuple[Attribute, ...]:
         """Explicit, derived and inverse attributes, inherited ones first."""
-        out: list[Attribute] = []
-        seen: set[tuple[str, str]] = set()
-        for n in (*reversed(self.ancestors(name)), name.lower()):
-            for a in self.entity(n).attributes:
-                if a.key not in seen:
-                    seen.add(a.key)
-                    out.append(a)
-        return tuple(out)
+        return tuple(a for n in self.linearization(name) for a in self.entity(n).attributes)
 
     def attribute(self, entity: str, name: str) -> Attribute | None:
         """The attribute ``name`` as seen from ``entity`` (own or inherited)."""
@@ -210,19 +220,7 @@ class SchemaModel:
         key = name.lower()
         if key in self._p21:
             return self._p21[key]
-        ordered: list[Attribute] = []
-        seen: set[tuple[str, str]] = set()
-
-        def visit(entity: str) -> None:
-            e = self.entity(entity)
-            for st in e.supertypes:
-                visit(st)
-            for a in e.explicit:
-                if a.key not in seen:
-                    seen.add(a.key)
-                    ordered.append(a)
-
-        visit(key)
+        ordered = [a for n in self.linearization(key) for a in self.entity(n).explicit]
         overrides: dict[tuple[str, str], Redeclaration] = {}
         for r, target in self.redeclarations(key):
             if target is not None and target.key not in overrides:

@@ -1,0 +1,143 @@
+"""The OWL rendering: a snapshot compared as RDF graphs, then the shipped ontology vs the model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from rdflib import OWL, RDF, RDFS, XSD, Graph, Literal, URIRef
+from rdflib.collection import Collection
+from rdflib.compare import graph_diff, isomorphic, to_isomorphic
+
+from stepnc_graph.express import parse_file
+from stepnc_graph.generators.owl import OwlGenerator
+from stepnc_graph.naming import P21, STEPNC, Naming
+from stepnc_graph.schema import build_model
+from stepnc_graph.schema.catalog import Catalog
+from stepnc_graph.typemap import value_shape
+
+from conftest import FIXTURES, ROOT
+
+OWL_FIX = FIXTURES / "owl"
+
+
+def tiny_graph() -> Graph:
+    model = build_model(parse_file(OWL_FIX / "tiny.exp"))
+    catalog = Catalog(OWL_FIX, ("tiny.exp",), {}, "https://w3id.org/stepnc-graph/iso14649#",
+                      "https://w3id.org/stepnc-graph/iso14649/", "0.1.0")
+    return OwlGenerator(model, catalog).schema_graph("tiny")
+
+
+def test_tiny_schema_matches_snapshot() -> None:
+    """Snapshot: tests/fixtures/owl/tiny.ttl (regenerate deliberately if conventions change)."""
+    got = tiny_graph()
+    want = Graph().parse(OWL_FIX / "tiny.ttl")
+    if not isomorphic(got, want):
+        _, only_got, only_want = graph_diff(to_isomorphic(got), to_isomorphic(want))
+        pytest.fail("snapshot differs\n+ " + only_got.serialize(format="nt") + "\n- " + only_want.serialize(format="nt"))
+
+
+@pytest.fixture(scope="module")
+def tiny() -> Graph:
+    return tiny_graph()
+
+
+def test_entity_class_hierarchy_and_disjointness(tiny: Graph) -> None:
+    assert (STEPNC.bolt, RDF.type, OWL.Class) in tiny
+    assert (STEPNC.bolt, RDFS.subClassOf, STEPNC.part) in tiny
+    assert (STEPNC.part, P21.abstract, Literal(True)) in tiny
+    assert (STEPNC.bolt, RDFS.label, Literal("bolt")) in tiny
+    node = next(tiny.subjects(RDF.type, OWL.AllDisjointClasses))
+    assert set(Collection(tiny, tiny.value(node, OWL.members))) == {STEPNC.bolt, STEPNC.nut}
+
+
+def test_attribute_properties(tiny: Graph) -> None:
+    length = STEPNC["bolt.length"]
+    assert (length, RDF.type, OWL.DatatypeProperty) in tiny
+    assert (length, RDFS.range, XSD.double) in tiny  # defined type -> typed literal
+    assert (length, P21.expressType, Literal("length_measure")) in tiny
+    assert (length, P21.position, Literal(3)) in tiny  # after part.name, part.tags
+    assert (STEPNC["part.name"], P21.position, Literal(1)) in tiny
+    assert (STEPNC["bolt.points"], RDFS.range, RDF.List) in tiny
+    assert (STEPNC["bolt.points"], P21.aggregate, Literal("LIST [2:?]")) in tiny
+    assert (STEPNC["nut.fits"], RDFS.range, STEPNC.bolt) in tiny  # SET -> repeated values
+    assert (STEPNC["nut.fits"], RDF.type, OWL.ObjectProperty) in tiny
+    assert (STEPNC["part.tags"], RDF.type, OWL.DatatypeProperty) in tiny
+    assert (STEPNC["nut.holder"], OWL.inverseOf, STEPNC["bolt.value"]) in tiny
+    assert (STEPNC["bolt.ok"], P21.optional, Literal(True)) in tiny
+
+
+def test_logical_range_admits_unknown(tiny: Graph) -> None:
+    rng = tiny.value(STEPNC["bolt.ok"], RDFS.range)
+    assert set(Collection(tiny, tiny.value(rng, OWL.unionOf))) == {XSD.boolean, P21.logicalUnknown}
+
+
+def test_enumeration_items_are_scoped(tiny: Graph) -> None:
+    assert (STEPNC["side.left"], RDF.type, STEPNC.side) in tiny
+    assert (STEPNC["hand.left"], RDF.type, STEPNC.hand) in tiny
+    assert STEPNC["side.left"] != STEPNC["hand.left"]
+    assert list(Collection(tiny, tiny.value(STEPNC.side, OWL.oneOf))) == [STEPNC["side.left"], STEPNC["side.right"]]
+
+
+def test_select_members_are_subclasses_queryable(tiny: Graph) -> None:
+    rows = tiny.query("SELECT ?c WHERE { ?c rdfs:subClassOf* stepnc:value_select }",
+                      initNs={"rdfs": RDFS, "stepnc": STEPNC})
+    assert {r[0] for r in rows} == {STEPNC.value_select, STEPNC.length_measure, STEPNC.part, STEPNC.bolt,
+                                    STEPNC.nut}
+    assert (STEPNC.length_measure, RDFS.subClassOf, P21.TypedValue) in tiny
+    assert (STEPNC.length_measure, P21.underlyingDatatype, XSD.double) in tiny
+
+
+# -- the shipped ontology ----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def shipped() -> Graph:
+    g = Graph()
+    for ttl in sorted((ROOT / "ontology").glob("*.ttl")):
+        g.parse(ttl)
+    return g
+
+
+SEED_SCHEMAS = ["turning_schema", "turning_machine_tool_schema", "turning_specific_feature_schema"]
+
+
+@pytest.mark.parametrize("schema", SEED_SCHEMAS)
+def test_every_seed_declaration_is_in_the_ontology(schema: str, shipped: Graph, iso_model) -> None:  # type: ignore[no-untyped-def]
+    catalog, model = iso_model
+    n = Naming(catalog.namespace, catalog.ontology_base)
+    ontology = n.ontology(schema)
+    assert (ontology, RDF.type, OWL.Ontology) in shipped
+    for decl in model.in_schema(schema):
+        iri = n.declaration(decl.name)
+        assert (iri, RDFS.isDefinedBy, ontology) in shipped, decl.name
+        for st in getattr(decl, "supertypes", ()):
+            assert (iri, RDFS.subClassOf, n.declaration(st)) in shipped
+    for e in (d for d in model.in_schema(schema) if d.name in model.entities):
+        positions = {s.attribute.key: s.index + 1 for s in model.part21_attributes(e.name)}
+        for a in model.entity(e.name).attributes:
+            p = n.attribute(e.name, a.name)
+            shape = value_shape(model, n, a.type)
+            want_range = RDF.List if shape.form == "list" else shape.leaf.range
+            got_range = shipped.value(p, RDFS.range)
+            if not shape.leaf.logical:
+                assert got_range == want_range, (p, got_range, want_range)
+            assert (p, RDFS.domain, n.declaration(e.name)) in shipped
+            if a.kind == "explicit":
+                assert shipped.value(p, P21.position) == Literal(positions[a.key]), p
+
+
+def test_iso_clause_annotations(shipped: Graph) -> None:
+    assert (STEPNC.outer_diameter, P21.isoClause, Literal("ISO/DIS 14649-12:2003, 5.2.2.1")) in shipped
+    assert (STEPNC.cut_in, P21.isoClause, Literal("ISO/DIS 14649-12:2003, C.2")) in shipped
+
+
+def test_python_vocabulary_rejects_typos() -> None:
+    from stepnc_graph.vocab import P21 as P21_TERMS
+    from stepnc_graph.vocab import STEPNC as TERMS
+
+    assert TERMS.turning_workingstep == URIRef(str(STEPNC) + "turning_workingstep")
+    assert TERMS["machining_operation.its_id"] == STEPNC["machining_operation.its_id"]
+    assert P21_TERMS.position == P21.position
+    with pytest.raises(AttributeError):
+        TERMS.turning_workingstp  # noqa: B018
