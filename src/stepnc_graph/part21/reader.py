@@ -1,0 +1,435 @@
+"""Read ISO 10303-21 exchange structures (editions 2 and 3).
+
+One compiled regular expression tokenizes; a small hand-written parser turns
+tokens into :class:`Instance` objects, **one at a time** (``instances()`` is a
+generator), so a million-instance file never has its token list or all its
+instances in memory -- only its text.
+
+Strict mode raises :class:`Part21SyntaxError` at the first syntax error.
+Lenient mode repairs what can be repaired safely (a typographic quote closing
+a string, a missing ``;``, an enumeration written without dots, an EXPRESS
+remark between instances) with a warning, drops an instance it cannot read with
+an error diagnostic naming its ``#id``, and goes on at the next instance.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from stepnc_graph.part21.diagnostics import Diagnostic, Part21SyntaxError
+from stepnc_graph.part21.strings import StringDecodeError, decode
+from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Ref, Typed
+
+TOKEN = re.compile(
+    r"""
+    (?P<ws>[ \t\r\n\f\v]+|/\*.*?\*/)
+  | (?P<ref>\#[0-9]+)
+  | (?P<str>'[^']*(?:''[^']*)*')
+  | (?P<real>[+-]?[0-9]+\.[0-9]*(?:[Ee][+-]?[0-9]+)?)
+  | (?P<int>[+-]?[0-9]+)
+  | (?P<enum>\.[A-Za-z_][A-Za-z0-9_]*\.)
+  | (?P<kw>!?[A-Za-z_][A-Za-z0-9_]*)
+  | (?P<bin>"[0-3][0-9A-Fa-f]*")
+  | (?P<p>[=();,$*])
+  | (?P<bad>/\*|.)
+    """,
+    re.X | re.S,
+)
+_MAGIC = re.compile(r"(?:[ \t\r\n\f\v]+|/\*.*?\*/)*ISO-10303-21[ \t\r\n]*;", re.S)
+_END = re.compile(r"END-ISO-10303-21[ \t\r\n]*;", re.S)
+_NEXT_STATEMENT = re.compile(r"(?m)^[ \t]*(?=#[0-9]+[ \t]*=)|\bENDSEC\b")
+_INSTANCE_START = re.compile(r"#[0-9]+[ \t\r\n]*=")
+_CURLY = "\u2019"
+_MAX_DEPTH = 200  # nested lists; deeper input is rejected, not a RecursionError or hang
+
+
+@dataclass(slots=True)
+class Instance:
+    """One entity instance: ``#id = NAME(params);`` or a complex ``#id = (A(..) B(..));``.
+
+    ``name`` is upper-case; for complex instances it is None and ``parts``
+    holds ``(NAME, params)`` per partial entity, in file order.
+    ``start``/``end`` are offsets of the instance's text in the file.
+    """
+
+    id: int
+    name: str | None
+    params: list[Any]
+    line: int
+    column: int
+    start: int
+    end: int
+    parts: list[tuple[str, list[Any]]] | None = None
+
+    @property
+    def names(self) -> list[str]:
+        return [self.name] if self.name is not None else [n for n, _ in self.parts or ()]
+
+
+@dataclass
+class Header:
+    """The HEADER section: every entity by upper-case name (FILE_DESCRIPTION, FILE_NAME, ...)."""
+
+    entities: dict[str, list[Any]] = field(default_factory=dict)
+    data_sections: list[list[Any]] = field(default_factory=list)
+
+    @property
+    def schemas(self) -> list[str]:
+        """FILE_SCHEMA's schema names, upper-case."""
+        params = self.entities.get("FILE_SCHEMA")
+        if not params or not isinstance(params[0], list):
+            return []
+        return [str(s).upper() for s in params[0] if isinstance(s, str)]
+
+
+class _Failure(Exception):
+    def __init__(self, message: str, pos: int, expected: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.message = message
+        self.pos = pos
+        self.expected = expected
+
+
+class Part21Reader:
+    """Reader over one file's text. Use :func:`read_text` / :func:`read_file`.
+
+    ``header`` is parsed on construction; ``instances()`` yields the DATA
+    instances; ``diagnostics`` collects what lenient mode repaired or dropped
+    (strict mode raises instead). ``defined`` counts instance definitions seen.
+    """
+
+    def __init__(self, text: str, filename: str = "<string>", lenient: bool = False) -> None:
+        self.text = text
+        self.filename = filename
+        self.lenient = lenient
+        self.diagnostics: list[Diagnostic] = []
+        self.header = Header()
+        self.defined = 0
+        self._ids: set[int] = set()
+        self._line = 1
+        self._line_start = 0
+        self._cursor = 0  # offset up to which _line/_line_start are exact
+        self._pos = self._read_header()
+
+    # -- positions ------------------------------------------------------------
+
+    def position(self, offset: int) -> tuple[int, int]:
+        """1-based (line, column) of ``offset``; incremental, so cheap when offsets grow."""
+        if offset < self._cursor:
+            self._line, self._line_start, self._cursor = 1, 0, 0
+        text = self.text
+        n = text.count("\n", self._cursor, offset)
+        if n:
+            self._line += n
+            self._line_start = text.rfind("\n", self._cursor, offset) + 1
+        self._cursor = offset
+        return self._line, offset - self._line_start + 1
+
+    def _source_line(self, offset: int) -> str:
+        start = self.text.rfind("\n", 0, offset) + 1
+        end = self.text.find("\n", offset)
+        return self.text[start: end if end >= 0 else len(self.text)]
+
+    def _syntax_error(self, failure: _Failure, p21_id: int | None) -> Part21SyntaxError:
+        line, column = self.position(failure.pos)
+        return Part21SyntaxError(failure.message, self.filename, line, column, self._source_line(failure.pos),
+                                 p21_id, failure.expected)
+
+    def _diagnose(self, code: str, offset: int, p21_id: int | None, message: str) -> None:
+        line, column = self.position(offset)
+        self.diagnostics.append(Diagnostic.make(code, self.filename, line, column, p21_id, message))
+
+    # -- tokens -----------------------------------------------------------------
+
+    def _token(self, pos: int) -> tuple[str, str, int, int]:
+        """(kind, text, start, end) of the next token after whitespace and comments."""
+        match = TOKEN.match
+        text = self.text
+        while True:
+            m = match(text, pos)
+            if m is None:
+                return "eof", "", pos, pos
+            kind = m.lastgroup or "bad"
+            if kind != "ws":
+                return kind, m.group(), m.start(), m.end()
+            pos = m.end()
+
+    def _expect(self, pos: int, what: str) -> int:
+        kind, tok, start, end = self._token(pos)
+        if tok.upper() != what:
+            found = "end of file" if kind == "eof" else repr(tok)
+            raise _Failure(f"expected {what!r}, found {found}", start, (what,))
+        return end
+
+    # -- values -------------------------------------------------------------------
+
+    def _params(self, pos: int, p21_id: int | None) -> tuple[list[Any], int]:
+        """Parse ``( value, ... )`` starting at the ``(`` at or after ``pos``.
+
+        Iterative with an explicit stack (bounded depth), so deep nesting in
+        damaged input is an error, never a RecursionError.
+        """
+        match = TOKEN.match
+        text = self.text
+        kind, tok, start, pos = self._token(pos)
+        if tok != "(":
+            raise _Failure(f"expected '(', found {tok!r}" if tok else "expected '(', found end of file", start, ("(",))
+        stack: list[tuple[list[Any], str | None]] = []
+        current: list[Any] = []
+        typed: str | None = None
+        expect_value = True
+        while True:
+            m = match(text, pos)
+            if m is None:
+                raise _Failure("unexpected end of file inside a parameter list", pos, (")",))
+            kind = m.lastgroup
+            start = pos
+            pos = m.end()
+            if kind == "ws":
+                continue
+            tok = m.group()
+            if expect_value:
+                if kind == "ref":
+                    current.append(Ref(tok[1:]))
+                elif kind == "real":
+                    current.append(float(tok))
+                elif kind == "int":
+                    current.append(int(tok))
+                elif kind == "str":
+                    value, pos = self._string(tok, start, pos, p21_id)
+                    current.append(value)
+                elif kind == "enum":
+                    current.append(Enum(tok[1:-1].upper()))
+                elif kind == "p":
+                    if tok == "$":
+                        current.append(UNSET)
+                    elif tok == "*":
+                        current.append(DERIVED)
+                    elif tok == "(":
+                        if len(stack) >= _MAX_DEPTH:
+                            raise _Failure(f"lists nested deeper than {_MAX_DEPTH}", start)
+                        stack.append((current, typed))
+                        current, typed = [], None
+                        continue
+                    elif tok == ")" and not current and typed is None:
+                        expect_value = False  # empty list
+                        pos = start
+                        continue
+                    else:
+                        raise _Failure(f"expected a parameter value, found {tok!r}", start,
+                                       ("value", "$", "*", "("))
+                elif kind == "kw":
+                    nkind, ntok, nstart, nend = self._token(pos)
+                    if ntok == "(":
+                        if len(stack) >= _MAX_DEPTH:
+                            raise _Failure(f"lists nested deeper than {_MAX_DEPTH}", start)
+                        stack.append((current, typed))
+                        current, typed, pos = [], tok.upper(), nend
+                        continue
+                    if not self.lenient:
+                        raise _Failure(f"expected a parameter value, found {tok!r} (enumeration values are "
+                                       f"written .{tok.upper()}.)", start, ("value",))
+                    self._diagnose("P21-BARE-ENUM", start, p21_id, f"{tok!r} read as .{tok.upper()}.")
+                    current.append(Enum(tok.upper()))
+                elif kind == "bin":
+                    current.append(Binary(tok[1:-1]))
+                else:
+                    raise self._bad_token(kind, tok, start, ("value",))
+                expect_value = False
+            else:
+                if tok == ",":
+                    expect_value = True
+                elif tok == ")":
+                    finished, finished_typed = current, typed
+                    if not stack:
+                        return finished, pos
+                    current, typed = stack.pop()
+                    if finished_typed is not None:
+                        if len(finished) != 1:
+                            raise _Failure(f"typed parameter {finished_typed} needs exactly one value", start)
+                        current.append(Typed(finished_typed, finished[0]))
+                    else:
+                        current.append(finished)
+                else:
+                    raise self._bad_token(kind or "bad", tok, start, (",", ")"))
+
+    def _bad_token(self, kind: str, tok: str, start: int, expected: tuple[str, ...]) -> _Failure:
+        if kind == "bad" and tok == "'":
+            return _Failure("string is never closed", start, ("'",))
+        if kind == "bad" and tok == "/*":
+            return _Failure("comment '/*' is never closed", start, ("*/",))
+        return _Failure(f"expected {' or '.join(repr(e) for e in expected)}, found {tok!r}", start, expected)
+
+    def _string(self, tok: str, start: int, end: int, p21_id: int | None) -> tuple[str, int]:
+        """Decode a string token; in lenient mode repair a typographic closing quote."""
+        if self.lenient and "\n" in tok:
+            first_break = tok.index("\n")
+            k = tok.find(_CURLY, 0, first_break)
+            if k > 0 and _INSTANCE_START.search(tok, first_break):
+                self._diagnose("P21-CURLY-QUOTE", start + k, p21_id,
+                               "string closed by a typographic quote (U+2019); read as closed there")
+                tok, end = tok[:k] + "'", start + k + 1
+        try:
+            return decode(tok[1:-1]), end
+        except StringDecodeError as e:
+            raise _Failure(str(e), start + 1 + e.offset) from None
+
+    # -- sections -------------------------------------------------------------------
+
+    def _read_header(self) -> int:
+        m = _MAGIC.match(self.text)
+        if m is None:
+            raise self._syntax_error(_Failure("not a Part 21 file: expected 'ISO-10303-21;' at the start",
+                                              0, ("ISO-10303-21;",)), None)
+        try:
+            pos = self._expect(m.end(), "HEADER")
+            pos = self._expect(pos, ";")
+            while True:
+                kind, tok, start, end = self._token(pos)
+                if kind == "kw" and tok.upper() == "ENDSEC":
+                    pos = self._expect(end, ";")
+                    break
+                if kind != "kw":
+                    raise _Failure(f"expected a header entity or ENDSEC, found {tok!r}", start, ("ENDSEC",))
+                params, pos = self._params(end, None)
+                pos = self._expect(pos, ";")
+                self.header.entities[tok.upper()] = params
+        except _Failure as failure:
+            raise self._syntax_error(failure, None) from None
+        for required in ("FILE_DESCRIPTION", "FILE_NAME", "FILE_SCHEMA"):
+            if required not in self.header.entities:
+                self._diagnose("P21-HEADER", pos, None, f"HEADER has no {required}")
+        return pos
+
+    def _section_start(self, pos: int) -> int | None:
+        """After ``DATA;``/``DATA(...);`` return the offset; at the end marker return None."""
+        kind, tok, start, end = self._token(pos)
+        if kind == "kw" and tok.upper() == "DATA":
+            nkind, ntok, _, nend = self._token(end)
+            if ntok == "(":
+                params, end = self._params(end, None)
+                self.header.data_sections.append(params)
+            else:
+                self.header.data_sections.append([])
+            return self._expect(end, ";")
+        m = _END.match(self.text, start)
+        if m is None:
+            raise _Failure(f"expected DATA or END-ISO-10303-21, found {tok!r}" if tok else
+                           "expected DATA or END-ISO-10303-21, found end of file", start,
+                           ("DATA", "END-ISO-10303-21;"))
+        return None
+
+    def instances(self) -> Iterator[Instance]:
+        """Yield every instance of every DATA section, in file order."""
+        pos = self._pos
+        while True:
+            try:
+                section = self._section_start(pos)
+            except _Failure as failure:
+                raise self._syntax_error(failure, None) from None
+            if section is None:
+                return
+            pos = yield from self._data_section(section)
+
+    def _data_section(self, pos: int) -> Iterator[Instance]:
+        while True:
+            kind, tok, start, end = self._token(pos)
+            if kind == "kw" and tok.upper() == "ENDSEC":
+                try:
+                    return self._expect(end, ";")
+                except _Failure as failure:
+                    raise self._syntax_error(failure, None) from None
+            if kind == "p" and tok == "(" and self.lenient and self.text.startswith("(*", start):
+                close = self.text.find("*)", start + 2)
+                if close >= 0:
+                    self._diagnose("P21-EXPRESS-REMARK", start, None, "EXPRESS remark between instances skipped")
+                    pos = close + 2
+                    continue
+            p21_id = int(tok[1:]) if kind == "ref" else None
+            try:
+                if kind != "ref":
+                    raise self._bad_token(kind, tok, start, ("#id", "ENDSEC")) if kind != "eof" else \
+                        _Failure("unexpected end of file in DATA section", start, ("ENDSEC",))
+                instance, pos = self._instance(p21_id, start, end)  # type: ignore[arg-type]
+            except _Failure as failure:
+                if not self.lenient:
+                    raise self._syntax_error(failure, p21_id) from None
+                pos = self._recover(failure, p21_id, start)
+                continue
+            self.defined += 1
+            if instance.id in self._ids:
+                message = f"#{instance.id} is defined again; this later definition is not loaded"
+                if not self.lenient:
+                    raise self._syntax_error(_Failure(message, start, ()), instance.id)
+                self._diagnose("P21-DUPLICATE-ID", start, instance.id, message)
+                continue
+            self._ids.add(instance.id)
+            yield instance
+
+    def _instance(self, p21_id: int, start: int, pos: int) -> tuple[Instance, int]:
+        pos = self._expect(pos, "=")
+        kind, tok, tstart, tend = self._token(pos)
+        if kind == "kw":
+            params, pos = self._params(tend, p21_id)
+            name: str | None = tok.upper()
+            parts = None
+        elif tok == "(":
+            name, params, parts = None, [], []
+            pos = tend
+            while True:
+                kind, tok, tstart, tend = self._token(pos)
+                if tok == ")":
+                    pos = tend
+                    break
+                if kind != "kw":
+                    raise _Failure(f"expected an entity name or ')' in a complex instance, found {tok!r}", tstart,
+                                   ("entity name", ")"))
+                part_params, pos = self._params(tend, p21_id)
+                parts.append((tok.upper(), part_params))
+            if not parts:
+                raise _Failure("empty complex instance", tstart, ("entity name",))
+        else:
+            raise _Failure(f"expected an entity name or '(', found {tok!r}", tstart, ("entity name", "("))
+        kind, tok, tstart, tend = self._token(pos)
+        if tok == ";":
+            end = tend
+        elif self.lenient and kind == "ref" and _INSTANCE_START.match(self.text, tstart):
+            self._diagnose("P21-MISSING-SEMICOLON", pos, p21_id, "';' missing after the instance; read as present")
+            end = pos
+        elif self.lenient and kind == "kw" and tok.upper() == "ENDSEC":
+            self._diagnose("P21-MISSING-SEMICOLON", pos, p21_id, "';' missing after the instance; read as present")
+            end = pos
+        else:
+            raise _Failure(f"expected ';', found {tok!r}" if tok else "expected ';', found end of file", tstart,
+                           (";",))
+        line, column = self.position(start)
+        return Instance(p21_id, name, params, line, column, start, end, parts), end
+
+    def _recover(self, failure: _Failure, p21_id: int | None, start: int) -> int:
+        """Report the unreadable instance and return the offset of the next statement."""
+        line, column = self.position(failure.pos)
+        where = f" at line {line}, column {column}" if failure.pos != start else ""
+        if p21_id is not None:
+            self.defined += 1
+        self._diagnose("P21-SYNTAX", start, p21_id, f"{failure.message}{where}; instance not loaded")
+        m = _NEXT_STATEMENT.search(self.text, max(failure.pos, start + 1))
+        return m.start() if m else len(self.text)
+
+
+def read_text(text: str, filename: str = "<string>", lenient: bool = False) -> Part21Reader:
+    """A reader over ``text`` (header already parsed; iterate ``instances()``)."""
+    return Part21Reader(text, filename, lenient)
+
+
+def read_file(path: str | Path, lenient: bool = False) -> Part21Reader:
+    """Read ``path``: UTF-8, falling back to ISO 8859-1 for files that are not UTF-8."""
+    raw = Path(path).read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    return Part21Reader(text, str(path), lenient)
