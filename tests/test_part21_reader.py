@@ -1,0 +1,221 @@
+"""Part 21 reader: structure, values, strings, positions, errors, lenient recovery, fuzzing."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from stepnc_graph.part21 import DERIVED, UNSET, Binary, Enum, Part21SyntaxError, Ref, Typed, read_file, read_text
+from stepnc_graph.part21.strings import StringDecodeError, decode, encode
+
+from conftest import FIXTURES
+
+P21 = FIXTURES / "p21"
+
+
+def wrap(data: str, header: str | None = None) -> str:
+    header = header or "FILE_DESCRIPTION(('t'),'2;1');FILE_NAME('t','',(''),(''),'','','');FILE_SCHEMA(('S'));"
+    return f"ISO-10303-21;\nHEADER;\n{header}\nENDSEC;\nDATA;\n{data}\nENDSEC;\nEND-ISO-10303-21;\n"
+
+
+def instances(data: str, lenient: bool = False):  # type: ignore[no-untyped-def]
+    r = read_text(wrap(data), "t.stp", lenient)
+    return list(r.instances()), r
+
+
+def test_every_parameter_kind() -> None:
+    [inst], _ = instances("#1=E(1,-2,+3,1.,-2.5E-3,1.5e+2,'it''s',.TCP.,.t.,\"0FF\",$,*,#22,(),(1,(2,3)),"
+                          "LENGTH_MEASURE(2.5),/* a comment */ ENTITY_NAME_X((#1)));")
+    assert inst.name == "E" and inst.id == 1
+    assert inst.params == [1, -2, 3, 1.0, -2.5e-3, 150.0, "it's", Enum("TCP"), Enum("T"), Binary("0FF"), UNSET,
+                           DERIVED, Ref(22), [], [1, [2, 3]], Typed("LENGTH_MEASURE", 2.5),
+                           Typed("ENTITY_NAME_X", [Ref(1)])]
+    assert isinstance(inst.params[0], int) and isinstance(inst.params[3], float)
+    assert isinstance(inst.params[12], Ref)
+
+
+def test_complex_instance_and_case_insensitive_names() -> None:
+    [inst], _ = instances("#5=(Point(1.)Cartesian_Point((0.,1.))representation_item(''));")
+    assert inst.name is None
+    assert inst.names == ["POINT", "CARTESIAN_POINT", "REPRESENTATION_ITEM"]
+    assert inst.parts and inst.parts[1][1] == [[0.0, 1.0]]
+
+
+def test_header_multiple_schemas_and_data_sections() -> None:
+    text = ("ISO-10303-21;HEADER;FILE_DESCRIPTION(('d'),'2;1');FILE_NAME('n','t',('a'),('o'),'p','s','x');"
+            "FILE_SCHEMA(('MACHINING_SCHEMA','milling_schema'));MY_HEADER_EXT(1);ENDSEC;"
+            "DATA('one',('MACHINING_SCHEMA'));#1=A();ENDSEC;DATA('two',('MILLING_SCHEMA'));#2=B();ENDSEC;"
+            "END-ISO-10303-21;")
+    r = read_text(text)
+    assert [i.id for i in r.instances()] == [1, 2]
+    assert r.header.schemas == ["MACHINING_SCHEMA", "MILLING_SCHEMA"]
+    assert r.header.entities["MY_HEADER_EXT"] == [1]
+    assert r.header.data_sections == [["one", ["MACHINING_SCHEMA"]], ["two", ["MILLING_SCHEMA"]]]
+
+
+def test_positions_survive_any_line_endings() -> None:
+    for eol in ("\n", "\r\n", "\r\n\n"):
+        text = wrap("#1=A();" + eol + "  #2=B(" + eol + "1);").replace("\n", eol) if eol != "\n" else \
+            wrap("#1=A();\n  #2=B(\n1);")
+        got = [(i.id, i.column) for i in read_text(text).instances()]
+        assert got == [(1, 1), (2, 3)]
+    [a, b] = read_text(wrap("#1=A();\n  #2=B(\n1);")).instances()
+    assert (a.line, b.line) == (6, 7)
+
+
+def test_very_long_line() -> None:
+    data = "#1=A((" + ",".join(str(i) for i in range(200_000)) + "));"
+    [inst], _ = instances(data)
+    assert len(inst.params[0]) == 200_000 and inst.params[0][-1] == 199_999
+
+
+@pytest.mark.parametrize("content,expected", [
+    ("abc", "abc"), ("it''s", "it's"), ("a\\\\b", "a\\b"),
+    ("\\S\\D", "\u00c4"), ("\\PA\\\\S\\D", "\u00c4"), ("\\PE\\\\S\\D", "\u0424"),  # ISO 8859-5 0xC4: Cyrillic EF
+    ("\\X\\E9t\\X\\E9", "\u00e9t\u00e9"), ("\\X2\\00E9004D\\X0\\", "\u00e9M"),
+    ("\\X4\\0001F600\\X0\\", "\U0001F600"), ("\\X2\\D83DDE00\\X0\\", "\U0001F600"),
+    ("line\nbreak", "linebreak"), ("a\\N\\b\\F\\", "ab"),
+])
+def test_string_decoding(content: str, expected: str) -> None:
+    assert decode(content) == expected
+
+
+def test_invalid_escape() -> None:
+    with pytest.raises(StringDecodeError):
+        decode("a\\Q\\b")
+
+
+@settings(max_examples=300)
+@given(st.text())
+def test_string_encode_decode_round_trip(value: str) -> None:
+    value = value.replace("\r", "").replace("\n", "")
+    literal = encode(value)
+    assert all(" " <= c <= "~" for c in literal)
+    assert decode(literal[1:-1]) == value
+
+
+# -- errors -------------------------------------------------------------------
+
+ERRORS = [
+    ("#1=A(1,2;", 6, 9, 1, "expected ',' or ')'"),
+    ("#1=A(1)", 7, 1, 1, "expected ';'"),
+    ("#1=A('open);", 6, 6, 1, "string is never closed"),
+    ("#1 A();", 6, 4, 1, "expected '='"),
+    ("#1=A(1)(;", 6, 8, 1, "expected ';'"),
+    ("#1=A(.X);", 6, 6, 1, "found '.'"),
+    ("#1=A(CW);", 6, 6, 1, "enumeration values are written .CW."),
+    ("#1=A();\n#1=B();", 7, 1, 1, "defined again"),
+    ("#1=A(X(1,2));", 6, 11, 1, "exactly one value"),
+]
+
+
+@pytest.mark.parametrize("data,line,column,p21_id,message", ERRORS)
+def test_strict_errors_are_positioned(data: str, line: int, column: int, p21_id: int, message: str) -> None:
+    with pytest.raises(Part21SyntaxError) as info:
+        list(read_text(wrap(data), "t.stp").instances())
+    e = info.value
+    assert isinstance(e, SyntaxError)
+    assert (e.line, e.column, e.p21_id) == (line, column, p21_id)
+    assert message in e.message
+    d = e.asdict()
+    assert d["p21_id"] == p21_id and d["file"] == "t.stp"
+    assert str(e).startswith(f"t.stp:{line}:{column}: #{p21_id}:")
+    assert str(e).splitlines()[-1].index("^") == 4 + column - 1
+
+
+def test_not_a_part21_file() -> None:
+    with pytest.raises(Part21SyntaxError) as info:
+        read_text("hello", "x.stp")
+    assert (info.value.line, info.value.column) == (1, 1)
+
+
+def test_deep_nesting_is_an_error_not_a_crash() -> None:
+    with pytest.raises(Part21SyntaxError, match="nested deeper"):
+        list(read_text(wrap("#1=A(" + "(" * 5000 + ")" * 5000 + ");")).instances())
+
+
+# -- lenient --------------------------------------------------------------------
+
+
+def test_lenient_drops_only_the_broken_instance() -> None:
+    got, r = instances("#1=A(1,2;\n#2=B();\n#3=C(#4#5);\n#4=D();", lenient=True)
+    assert [i.id for i in got] == [2, 4]
+    assert [(d.code, d.p21_id, d.line) for d in r.diagnostics] == [("P21-SYNTAX", 1, 6), ("P21-SYNTAX", 3, 8)]
+    assert r.defined == 4
+
+
+def test_lenient_repairs() -> None:
+    got, r = instances("#1=A('curly\u2019,CW)\n#2=B('x');\n(* remark *)\n#3=C();", lenient=True)
+    assert [i.id for i in got] == [1, 2, 3]
+    assert got[0].params == ["curly", Enum("CW")]
+    assert [d.code for d in r.diagnostics] == ["P21-CURLY-QUOTE", "P21-BARE-ENUM", "P21-MISSING-SEMICOLON",
+                                               "P21-EXPRESS-REMARK"]
+    assert all(d.severity == "warning" for d in r.diagnostics)
+
+
+def _count_definitions(path: Path) -> int:
+    """Instance definitions in a file, counted independently of the reader."""
+    return len(re.findall(r"(?m)^\s*#\d+\s*=", path.read_text(encoding="utf-8")))
+
+
+FAIL = sorted(P21.glob("fail_*.stp"))
+
+
+@pytest.mark.parametrize("path", FAIL, ids=lambda p: p.stem)
+def test_fail_fixtures_expected_reader_diagnostics(path: Path) -> None:
+    expected = json.loads(path.with_suffix(".reader.json").read_text())
+    with pytest.raises(Part21SyntaxError) as info:
+        list(read_file(path).instances())
+    assert [info.value.line, info.value.column] == expected["strict_error"]
+    r = read_file(path, lenient=True)
+    loaded = list(r.instances())
+    got = [[d.code, d.line, d.p21_id] for d in r.diagnostics]
+    assert got == expected["diagnostics"]
+    dropped = {d.p21_id for d in r.diagnostics if d.severity == "error"}
+    assert _count_definitions(path) == r.defined == len(loaded) + len(dropped)
+
+
+CORPUS_COUNTS = {"EXAMPLE1_FDIS_14649-11_2001.stp": 108, "EXAMPLE2_FDIS_14649-11_2001.stp": 544,
+                 "EXAMPLE3_FDIS_14649-11_2001.stp": 60, "nist_toolkit_ex1.stp": 105, "nist_toolkit_ex1E.stp": 1523,
+                 "ufsc_furo.p21": 60, "ufsc_TesteFinalUNBLAB.p21": 468, "ufsc_Peca_Defesa.p21": 112}
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("name", sorted(CORPUS_COUNTS))
+def test_corpus_files_read_strictly(shared: Path, name: str) -> None:
+    r = read_file(shared / "corpus" / "milling" / name)
+    assert sum(1 for _ in r.instances()) == CORPUS_COUNTS[name]
+    assert r.diagnostics == []
+
+
+# -- fuzzing ----------------------------------------------------------------------
+
+_PIECES = [*"#=();,$*'.\"/ \n", "#1", "#22", "=A(", "1.5", "-3", "'s'", ".T.", "B(", "/*", "*/", "ENDSEC;",
+           "DATA;", "(*", "*)", "\u2019", "\\X2\\", "\\"]
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(st.sampled_from(_PIECES), max_size=40).map("".join), st.booleans())
+def test_random_data_only_raises_documented_errors(data: str, lenient: bool) -> None:
+    try:
+        r = read_text(wrap(data), "f.stp", lenient)
+        for _ in r.instances():
+            pass
+    except Part21SyntaxError as e:
+        assert e.line >= 1 and e.column >= 1
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=300))
+def test_random_bytes_only_raise_documented_errors(blob: bytes) -> None:
+    text = "ISO-10303-21;HEADER;" + blob.decode("latin-1")
+    try:
+        for _ in read_text(text, "f.stp", lenient=True).instances():
+            pass
+    except Part21SyntaxError:
+        pass
