@@ -13,12 +13,18 @@ Scheme (documented in ``ontology/README.md``, stable for good):
   the two cannot collide);
 * each schema is an ontology ``.../iso14649/<schema_name>``;
 * Part 21 structure (ids, lines, unset list members, ...) uses the ``p21:``
-  vocabulary of :mod:`stepnc_graph.p21vocab`.
+  vocabulary of :mod:`stepnc_graph.p21vocab`;
+* a loaded file is one named graph; its IRI is the *base IRI* (by default
+  ``.../data/<file name>``, or ``--base-iri``) and the instance ``#12`` of it is
+  ``<base IRI>/i12`` (``<base IRI>i12`` when the base ends in ``/`` or ``#``):
+  the same file content and base IRI always give the same IRIs.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import PurePath
+from urllib.parse import quote
 
 from rdflib import Namespace, URIRef
 
@@ -26,6 +32,9 @@ STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
 ONTOLOGY_BASE = "https://w3id.org/stepnc-graph/iso14649/"
 P21_NS = "https://w3id.org/stepnc-graph/p21#"
 P21_ONTOLOGY = "https://w3id.org/stepnc-graph/p21"
+
+DATA_BASE = "https://w3id.org/stepnc-graph/data/"
+TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
 
 STEPNC = Namespace(STEPNC_NS)
 P21 = Namespace(P21_NS)
@@ -57,3 +66,17 @@ class Naming:
     def local_name(self, iri: str) -> str | None:
         """The local part of a vocabulary IRI, or None for a foreign IRI."""
         return iri[len(self.namespace):] if iri.startswith(self.namespace) else None
+
+
+def default_graph_iri(path: str) -> str:
+    """The graph IRI of a file loaded without ``--base-iri``: from its file name."""
+    return DATA_BASE + quote(PurePath(path).name, safe="")
+
+
+def instance_prefix(graph_iri: str) -> str:
+    """What instance ids are appended to, for a graph IRI."""
+    return graph_iri if graph_iri.endswith(("/", "#")) else graph_iri + "/"
+
+
+def instance_iri(graph_iri: str, p21_id: int) -> str:
+    return f"{instance_prefix(graph_iri)}i{p21_id}"

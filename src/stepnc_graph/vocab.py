@@ -1319,30 +1319,43 @@ class P21(DefinedNamespace):
     _fail = True
     _NS = Namespace("https://w3id.org/stepnc-graph/p21#")
 
+    ExchangeStructure: URIRef
     RawInstance: URIRef
     TypedValue: URIRef
     abstract: URIRef
     aggregate: URIRef
     attributeKind: URIRef
+    authorization: URIRef
+    byteSize: URIRef
     declaredBy: URIRef
     derivation: URIRef
     derivedValue: URIRef
+    diagnosticCount: URIRef
     elementType: URIRef
     emptyAggregate: URIRef
+    entityName: URIRef
     expressKind: URIRef
     expressName: URIRef
     expressType: URIRef
+    headerText: URIRef
     id: URIRef
+    implementationLevel: URIRef
+    instanceCount: URIRef
     inverseFor: URIRef
     isoClause: URIRef
     isoPart: URIRef
     line: URIRef
     logicalUnknown: URIRef
     optional: URIRef
+    originatingSystem: URIRef
     position: URIRef
+    preprocessorVersion: URIRef
+    rawInstanceCount: URIRef
     rawText: URIRef
     redeclaration: URIRef
     schema: URIRef
+    schemaName: URIRef
+    sha256: URIRef
     supertypeExpression: URIRef
     underlyingDatatype: URIRef
     underlyingType: URIRef

@@ -76,6 +76,7 @@ class Header:
 
     entities: dict[str, list[Any]] = field(default_factory=dict)
     data_sections: list[list[Any]] = field(default_factory=list)
+    text: str = ""  # the section verbatim, from HEADER to ENDSEC;
 
     @property
     def schemas(self) -> list[str]:
@@ -286,6 +287,7 @@ class Part21Reader:
             raise self._syntax_error(_Failure("not a Part 21 file: expected 'ISO-10303-21;' at the start",
                                               0, ("ISO-10303-21;",)), None)
         try:
+            _, _, header_start, _ = self._token(m.end())
             pos = self._expect(m.end(), "HEADER")
             pos = self._expect(pos, ";")
             while True:
@@ -300,6 +302,7 @@ class Part21Reader:
                 self.header.entities[tok.upper()] = params
         except _Failure as failure:
             raise self._syntax_error(failure, None) from None
+        self.header.text = self.text[header_start:pos]
         for required in ("FILE_DESCRIPTION", "FILE_NAME", "FILE_SCHEMA"):
             if required not in self.header.entities:
                 self._diagnose("P21-HEADER", pos, None, f"HEADER has no {required}")

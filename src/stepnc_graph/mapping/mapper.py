@@ -1,0 +1,230 @@
+"""Map Part 21 instances to N-Triples lines, schema-driven.
+
+An instance that fits the schema becomes a node typed with its entity class
+(every partial entity's class for a complex instance) and one triple per set
+value, in the representation of :mod:`stepnc_graph.typemap`. One that does not
+fit -- unknown entity name, wrong parameter count, a value of the wrong type, a
+reference to an instance the file does not define -- is kept as a
+``p21:RawInstance`` holding its exact source text, with a diagnostic, so
+nothing is lost and the writer can put it back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from stepnc_graph.mapping import terms as T
+from stepnc_graph.mapping.plan import (
+    P21_DERIVED,
+    P21_EMPTY,
+    P21_ENTITY_NAME,
+    P21_ID,
+    P21_LINE,
+    P21_RAW,
+    P21_RAW_TEXT,
+    P21_UNKNOWN,
+    P21_UNSET,
+    P21_VALUE,
+    Encoding,
+    EntityPlan,
+    Plans,
+    Slot,
+)
+from stepnc_graph.part21.diagnostics import Diagnostic
+from stepnc_graph.part21.reader import Instance
+from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Ref, Typed
+
+
+class Mismatch(Exception):
+    """A value that does not fit; ``code`` is the diagnostic code."""
+
+    def __init__(self, code: str, message: str) -> None:
+        super().__init__(message)
+        self.code = code
+        self.message = message
+
+
+def describe(value: Any) -> str:
+    """A value as Part 21 would write it, for messages."""
+    if value is UNSET or value is DERIVED:
+        return repr(value)
+    if isinstance(value, Ref):
+        return f"#{int(value)}"
+    if isinstance(value, Enum):
+        return f".{value}."
+    if isinstance(value, list):
+        inner = ",".join(describe(v) for v in value[:4])
+        return f"({inner}{',...' if len(value) > 4 else ''})"
+    if isinstance(value, Typed):
+        return f"{value.name}({describe(value.value)})"
+    if isinstance(value, str):
+        return repr(value)
+    return str(value)
+
+
+class InstanceMapper:
+    """Turns instances of one file into N-Triples lines for one named graph.
+
+    ``defined`` is the set of instance ids the file defines (for unresolved
+    references); ``subject`` mints an instance's IRI from its id.
+    """
+
+    def __init__(self, plans: Plans, subject: Callable[[int], str], defined: set[int], filename: str,
+                 source: str) -> None:
+        self.plans = plans
+        self.subject = subject
+        self.defined = defined
+        self.filename = filename
+        self.source = source
+        self.diagnostics: list[Diagnostic] = []
+        self.raw_count = 0
+        self._bnode = 0
+
+    # -- values ----------------------------------------------------------------
+
+    def _blank(self) -> str:
+        self._bnode += 1
+        return f"_:b{self._bnode}"
+
+    def _ref(self, value: Ref) -> str:
+        if int(value) not in self.defined:
+            raise Mismatch("P21-UNRESOLVED-REF", f"#{int(value)} is not defined in the file")
+        return f"<{self.subject(int(value))}>"
+
+    def encode(self, enc: Encoding, value: Any, out: list[str]) -> str:
+        """The RDF term for ``value``; list cells and typed wrappers go to ``out``."""
+        kind = enc.kind
+        vt = type(value)
+        if kind == "real":
+            if vt is float or vt is int:
+                return T.double(float(value))
+        elif kind == "entity":
+            if vt is Ref:
+                return self._ref(value)
+        elif kind == "string":
+            if vt is str:
+                return T.string(value)
+        elif kind == "integer":
+            if vt is int:
+                return T.integer(value)
+        elif kind == "list":
+            if vt is list:
+                return self._list(enc.element, value, out)  # type: ignore[arg-type]
+        elif kind == "enum":
+            if vt is Enum and value in enc.items:
+                return f"<{enc.items[value]}>"
+        elif kind == "boolean":
+            if vt is Enum and value in ("T", "F"):
+                return T.boolean(value == "T")
+        elif kind == "logical":
+            if vt is Enum and value in ("T", "F", "U"):
+                return T.boolean(value == "T") if value != "U" else T.typed("UNKNOWN", P21_UNKNOWN)
+        elif kind == "select":
+            return self._select(enc, value, out)
+        elif kind == "binary":
+            if vt is Binary and value[:1] == "0" and len(value) % 2 == 1:
+                return T.typed(value[1:].upper(), enc.datatype or "")
+        elif kind == "any":
+            raise Mismatch("P21-VALUE-TYPE", "generic types cannot be stored")
+        raise Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {describe(value)}")
+
+    def _list(self, element: Encoding, values: list[Any], out: list[str]) -> str:
+        if not values:
+            return T.RDF_NIL
+        head = cell = self._blank()
+        last = len(values) - 1
+        for i, v in enumerate(values):
+            term = P21_UNSET if v is UNSET else self.encode(element, v, out)
+            out.append(f"{cell} {T.RDF_FIRST} {term} .\n")
+            nxt = T.RDF_NIL if i == last else self._blank()
+            out.append(f"{cell} {T.RDF_REST} {nxt} .\n")
+            cell = nxt
+        return head
+
+    def _select(self, enc: Encoding, value: Any, out: list[str]) -> str:
+        vt = type(value)
+        if vt is Ref and enc.accepts_refs:
+            return self._ref(value)
+        if vt is Enum and value in enc.items:
+            return f"<{enc.items[value]}>"
+        if vt is Typed and value.name in enc.typed:
+            cls, inner = enc.typed[value.name]
+            node = self._blank()
+            out.append(f"{node} {T.RDF_TYPE} <{cls}> .\n")
+            out.append(f"{node} {P21_VALUE} {self.encode(inner, value.value, out)} .\n")
+            return node
+        raise Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {describe(value)}")
+
+    # -- instances ---------------------------------------------------------------
+
+    def _slots(self, s: str, slots: tuple[Slot, ...], params: list[Any], out: list[str]) -> None:
+        for slot, value in zip(slots, params):
+            if value is UNSET:
+                continue
+            if value is DERIVED:
+                out.append(f"{s} {P21_DERIVED} <{slot.prop}> .\n")
+                continue
+            try:
+                if slot.repeated:
+                    if type(value) is not list:
+                        raise Mismatch("P21-VALUE-TYPE", f"expected a SET, found {describe(value)}")
+                    if not value:
+                        out.append(f"{s} {P21_EMPTY} <{slot.prop}> .\n")
+                    for v in value:
+                        out.append(f"{s} <{slot.prop}> {self.encode(slot.encoding, v, out)} .\n")
+                else:
+                    out.append(f"{s} <{slot.prop}> {self.encode(slot.encoding, value, out)} .\n")
+            except Mismatch as m:
+                raise Mismatch(m.code, f"{slot.entity}.{slot.name} (parameter {slot.index + 1}): {m.message}") \
+                    from None
+
+    def _count(self, name: str, slots: tuple[Slot, ...], params: list[Any]) -> None:
+        if len(params) != len(slots):
+            raise Mismatch("P21-ARGUMENT-COUNT",
+                           f"{name} takes {len(slots)} parameter(s) ({', '.join(s.name for s in slots)}), "
+                           f"found {len(params)}")
+
+    def _plan(self, name: str) -> EntityPlan:
+        plan = self.plans.entities.get(name)
+        if plan is None:
+            raise Mismatch("P21-UNKNOWN-ENTITY", f"{name} is not an entity of the loaded schemas")
+        return plan
+
+    def map(self, inst: Instance, out: list[str]) -> None:
+        """Append the instance's triples to ``out`` (raw form if it does not fit)."""
+        s = f"<{self.subject(inst.id)}>"
+        lines: list[str] = []
+        try:
+            if inst.parts is None:
+                plan = self._plan(inst.name or "")
+                self._count(plan.name.upper(), plan.slots, inst.params)
+                lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
+                self._slots(s, plan.slots, inst.params, lines)
+                if plan.abstract:
+                    self._diagnose(inst, "P21-ABSTRACT", f"{plan.name} is ABSTRACT: instances belong to a subtype")
+            else:
+                for name, params in inst.parts:
+                    plan = self._plan(name)
+                    self._count(name, plan.own_slots, params)
+                    lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
+                    self._slots(s, plan.own_slots, params, lines)
+        except Mismatch as m:
+            self._diagnose(inst, m.code, m.message)
+            self._raw(inst, s, out)
+            return
+        out.extend(lines)
+        out.append(f"{s} {P21_ID} {T.integer(inst.id)} .\n")
+        out.append(f"{s} {P21_LINE} {T.integer(inst.line)} .\n")
+
+    def _raw(self, inst: Instance, s: str, out: list[str]) -> None:
+        self.raw_count += 1
+        names = "+".join(inst.names)
+        out.append(f"{s} {T.RDF_TYPE} {P21_RAW} .\n")
+        out.append(f"{s} {P21_ENTITY_NAME} {T.string(names)} .\n")
+        out.append(f"{s} {P21_RAW_TEXT} {T.string(self.source[inst.start:inst.end])} .\n")
+        out.append(f"{s} {P21_ID} {T.integer(inst.id)} .\n")
+        out.append(f"{s} {P21_LINE} {T.integer(inst.line)} .\n")
+
+    def _diagnose(self, inst: Instance, code: str, message: str) -> None:
+        self.diagnostics.append(Diagnostic.make(code, self.filename, inst.line, inst.column, inst.id, message))

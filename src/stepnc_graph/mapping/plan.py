@@ -1,0 +1,165 @@
+"""Compiled mapping plans: for each entity, how each Part 21 parameter becomes RDF.
+
+Built once per model from :mod:`stepnc_graph.typemap` decisions, so the hot
+loop of the loader only looks things up. The writer uses the same plans in
+reverse, which keeps load and export consistent by construction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+from stepnc_graph.naming import P21_NS, Naming
+from stepnc_graph.schema.model import (
+    AggregateType,
+    BaseType,
+    DefinedType,
+    Entity,
+    EnumerationType,
+    GenericType,
+    NamedType,
+    SelectType,
+    SimpleType,
+    TypeRef,
+)
+from stepnc_graph.schema.view import SchemaModel
+from stepnc_graph.typemap import XSD_OF
+
+
+@dataclass(frozen=True)
+class Encoding:
+    """How values of one type are read from Part 21 and written as RDF terms.
+
+    ``kind``: integer, real, string, boolean, logical, binary, entity, enum,
+    select, list, any. ``items`` maps enumeration items (upper-case) to IRIs;
+    ``typed`` maps a select's defined-type names (upper-case) to (class IRI,
+    encoding of its underlying type); ``element`` is the member encoding of a list.
+    """
+
+    kind: str
+    label: str
+    items: dict[str, str] = field(default_factory=dict, compare=False)
+    typed: dict[str, tuple[str, "Encoding"]] = field(default_factory=dict, compare=False)
+    accepts_refs: bool = False
+    element: "Encoding | None" = None
+    datatype: str | None = None
+
+
+@dataclass(frozen=True)
+class Slot:
+    """One Part 21 parameter position of an entity record."""
+
+    index: int
+    name: str
+    entity: str
+    prop: str  # the property IRI, bare
+    encoding: Encoding
+    optional: bool
+    derived: bool
+    repeated: bool  # a top-level SET: one triple per member
+
+
+@dataclass(frozen=True)
+class EntityPlan:
+    name: str
+    cls: str  # class IRI, bare
+    abstract: bool
+    slots: tuple[Slot, ...]
+    own_slots: tuple[Slot, ...]  # the entity's own explicit attributes (complex instances)
+
+
+class Plans:
+    """Plans for every entity of a model, keyed by upper-case Part 21 name."""
+
+    def __init__(self, model: SchemaModel, naming: Naming) -> None:
+        self.model = model
+        self.n = naming
+        self._enc: dict[str, Encoding] = {}
+        self.entities: dict[str, EntityPlan] = {}
+        for e in model.entities.values():
+            self.entities[e.name.upper()] = self._entity_plan(e)
+        self.by_class = {p.cls: p for p in self.entities.values()}
+
+    # -- encodings ----------------------------------------------------------
+
+    def encoding(self, t: TypeRef) -> Encoding:
+        if isinstance(t, NamedType):
+            if t.name not in self._enc:
+                self._enc[t.name] = self._named(t.name)
+            return self._enc[t.name]
+        if isinstance(t, SimpleType):
+            return self._simple(t.base)
+        if isinstance(t, AggregateType):
+            element = self.encoding(t.element)
+            return Encoding("list", str(t), element=element)
+        assert isinstance(t, GenericType)
+        return Encoding("any", str(t))
+
+    def _simple(self, base: BaseType, label: str | None = None) -> Encoding:
+        kind = {BaseType.INTEGER: "integer", BaseType.REAL: "real", BaseType.NUMBER: "real",
+                BaseType.STRING: "string", BaseType.BOOLEAN: "boolean", BaseType.LOGICAL: "logical",
+                BaseType.BINARY: "binary"}[base]
+        return Encoding(kind, label or base.value, datatype=str(XSD_OF[base]))
+
+    def _named(self, name: str) -> Encoding:
+        decl = self.model[name]
+        if isinstance(decl, Entity):
+            return Encoding("entity", name, accepts_refs=True)
+        if isinstance(decl, EnumerationType):
+            return Encoding("enum", name, items={i.upper(): str(self.n.enum_item(name, i)) for i in decl.items})
+        select = self.model.select_behind(name)
+        if select is not None:
+            return self._select(name, select)
+        assert isinstance(decl, DefinedType)
+        inner = self.encoding(decl.underlying)
+        return Encoding(inner.kind, name, inner.items, inner.typed, inner.accepts_refs, inner.element,
+                        inner.datatype)
+
+    def _select(self, name: str, select: SelectType) -> Encoding:
+        items: dict[str, str] = {}
+        typed: dict[str, tuple[str, Encoding]] = {}
+        refs = False
+        for member in self.model.select_closure(select.name):
+            decl = self.model[member]
+            if isinstance(decl, Entity):
+                refs = True
+            elif isinstance(decl, EnumerationType):
+                for item in decl.items:
+                    items.setdefault(item.upper(), str(self.n.enum_item(member, item)))
+            elif isinstance(decl, DefinedType):
+                typed[member.upper()] = (str(self.n.declaration(member)), self.encoding(decl.underlying))
+        return Encoding("select", name, items=items, typed=typed, accepts_refs=refs)
+
+    # -- entities -----------------------------------------------------------
+
+    def _slot(self, s_index: int, attr_entity: str, attr_name: str, t: TypeRef, optional: bool,
+              derived: bool) -> Slot:
+        base = self.model.base_type(t)
+        repeated = isinstance(base, AggregateType) and base.kind == "SET"
+        encoding = self.encoding(base.element if repeated else t)  # type: ignore[union-attr]
+        return Slot(s_index, attr_name, attr_entity, str(self.n.attribute(attr_entity, attr_name)), encoding,
+                    optional, derived, repeated)
+
+    def _entity_plan(self, e: Entity) -> EntityPlan:
+        slots = tuple(self._slot(s.index, s.attribute.entity, s.name, s.type, s.optional, s.derived)
+                      for s in self.model.part21_attributes(e.name))
+        own = tuple(self._slot(i, e.name, a.name, a.type, a.optional, False) for i, a in enumerate(e.explicit))
+        return EntityPlan(e.name, str(self.n.declaration(e.name)), e.abstract, slots, own)
+
+
+P21_ID = f"<{P21_NS}id>"
+P21_LINE = f"<{P21_NS}line>"
+P21_DERIVED = f"<{P21_NS}derivedValue>"
+P21_EMPTY = f"<{P21_NS}emptyAggregate>"
+P21_VALUE = f"<{P21_NS}value>"
+P21_RAW = f"<{P21_NS}RawInstance>"
+P21_RAW_TEXT = f"<{P21_NS}rawText>"
+P21_ENTITY_NAME = f"<{P21_NS}entityName>"
+P21_UNSET = f"<{P21_NS}unset>"
+P21_UNKNOWN = f"{P21_NS}logicalUnknown"
+
+
+@lru_cache(maxsize=4)
+def plans_for(model: SchemaModel, naming: Naming) -> Plans:
+    return Plans(model, naming)

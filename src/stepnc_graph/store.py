@@ -1,0 +1,230 @@
+"""The graph store: an embedded Oxigraph database, on disk by default.
+
+Layout of a store directory::
+
+    DIR/stepnc-graph-store.json   marker (format version)
+    DIR/oxigraph/                 the Oxigraph (RocksDB) database
+    DIR/journal/                  only while a load runs: a checkpoint + what is loading
+
+**Atomic loads.** Oxigraph's bulk loader is the fast path but is not
+transactional, and a transaction holding a million-instance graph would need
+gigabytes. So an on-disk load first takes a checkpoint of the database
+(``Store.backup``: hard links, cheap), writes a journal entry, then replaces
+the graph. On any exception the checkpoint is put back; if the process is
+killed, the next open finds the journal and puts the checkpoint back before
+anything else. Either way the store is as it was. An in-memory store loads into
+a staging graph and moves it into place in one SPARQL Update transaction.
+
+The store directory is chosen by ``--store DIR``, else ``$STEPNC_GRAPH_STORE``,
+else ``./.stepnc-graph``.
+"""
+
+from __future__ import annotations
+
+import gc
+import io
+import json
+import os
+import shutil
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pyoxigraph as ox
+
+STORE_ENV = "STEPNC_GRAPH_STORE"
+DEFAULT_STORE = ".stepnc-graph"
+FORMAT_VERSION = 1
+STAGING = "urn:stepnc-graph:staging:"
+
+
+def default_store_path() -> Path:
+    return Path(os.environ.get(STORE_ENV) or DEFAULT_STORE)
+
+
+class StoreError(Exception):
+    """A store directory that cannot be used (not a store, newer format, locked)."""
+
+
+class _ChunkStream(io.RawIOBase):
+    """A binary file over an iterator of text chunks, for Oxigraph's streaming loader.
+
+    An exception raised by the iterator is kept in ``error`` so the caller can
+    re-raise the original after Oxigraph reports a failed read.
+    """
+
+    def __init__(self, chunks: Iterable[str]) -> None:
+        self._chunks: Iterator[str] = iter(chunks)
+        self._buffer = b""
+        self.error: BaseException | None = None
+        self.bytes_read = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, target: Any) -> int:
+        try:
+            while not self._buffer:
+                chunk = next(self._chunks, None)
+                if chunk is None:
+                    return 0
+                self._buffer = chunk.encode("utf-8")
+        except BaseException as exc:  # noqa: BLE001 -- re-raised by the caller
+            self.error = exc
+            raise
+        n = min(len(target), len(self._buffer))
+        target[:n] = self._buffer[:n]
+        self._buffer = self._buffer[n:]
+        self.bytes_read += n
+        return n
+
+
+class GraphStore:
+    """Named graphs in an Oxigraph store. ``path=None`` is a throw-away in-memory store."""
+
+    def __init__(self, path: Path | str | None = None) -> None:
+        self.path = Path(path) if path is not None else None
+        if self.path is None:
+            self._store = ox.Store()
+            return
+        self.path.mkdir(parents=True, exist_ok=True)
+        marker = self.path / "stepnc-graph-store.json"
+        if marker.exists():
+            version = json.loads(marker.read_text()).get("format", 0)
+            if version > FORMAT_VERSION:
+                raise StoreError(f"{self.path}: store format {version} is newer than this stepnc-graph supports")
+        elif any(self.path.iterdir()):
+            raise StoreError(f"{self.path} is not empty and is not a stepnc-graph store")
+        else:
+            marker.write_text(json.dumps({"format": FORMAT_VERSION}) + "\n")
+        self._recover()
+        try:
+            self._store = ox.Store(str(self.path / "oxigraph"))
+        except OSError as e:
+            raise StoreError(f"cannot open the store in {self.path}: {e}") from None
+
+    # -- journal ------------------------------------------------------------------
+
+    @property
+    def _journal(self) -> Path:
+        assert self.path is not None
+        return self.path / "journal"
+
+    def _recover(self) -> bool:
+        """Put back the checkpoint of an interrupted load, if there is one."""
+        journal = self._journal
+        if not journal.exists():
+            return False
+        checkpoint = journal / "checkpoint"
+        if (journal / "loading").exists() and checkpoint.exists():
+            data = self.path / "oxigraph"  # type: ignore[operator]
+            shutil.rmtree(data, ignore_errors=True)
+            checkpoint.rename(data)
+        shutil.rmtree(journal, ignore_errors=True)
+        return True
+
+    def _reopen(self) -> None:
+        del self._store
+        gc.collect()
+        self._recover()
+        self._store = ox.Store(str(self.path / "oxigraph"))  # type: ignore[operator]
+
+    # -- writing ----------------------------------------------------------------------
+
+    def replace_graph(self, graph: str, chunks: Iterable[str],
+                      before_commit: Callable[[], None] | None = None) -> None:
+        """Atomically make ``graph`` hold exactly the N-Triples in ``chunks``.
+
+        ``before_commit`` runs after the data is in place but before the load is
+        committed; an exception from it (or from ``chunks``) rolls back.
+        """
+        if self.path is None:
+            self._replace_in_memory(graph, chunks, before_commit)
+            return
+        journal = self._journal
+        journal.mkdir()
+        try:
+            self._store.flush()
+            self._store.backup(str(journal / "checkpoint"))
+            (journal / "loading").write_text(graph)
+            self._store.remove_graph(ox.NamedNode(graph))
+            self._bulk_load(graph, chunks)
+            if before_commit is not None:
+                before_commit()
+            self._store.flush()
+        except BaseException:
+            self._reopen()
+            raise
+        shutil.rmtree(journal)
+
+    def _bulk_load(self, graph: str, chunks: Iterable[str]) -> None:
+        stream = _ChunkStream(chunks)
+        try:
+            self._store.bulk_load(io.BufferedReader(stream, 1 << 20), ox.RdfFormat.N_TRIPLES,
+                                  to_graph=ox.NamedNode(graph), lenient=True)
+        except BaseException:
+            if stream.error is not None:
+                raise stream.error from None
+            raise
+
+    def _replace_in_memory(self, graph: str, chunks: Iterable[str],
+                           before_commit: Callable[[], None] | None) -> None:
+        staging = STAGING + uuid.uuid4().hex
+        try:
+            self._bulk_load(staging, chunks)
+            if before_commit is not None:
+                before_commit()
+        except BaseException:
+            self._store.remove_graph(ox.NamedNode(staging))
+            raise
+        self._store.update(f"DROP SILENT GRAPH <{graph}> ; MOVE SILENT GRAPH <{staging}> TO <{graph}>")
+
+    def remove_graph(self, graph: str) -> bool:
+        node = ox.NamedNode(graph)
+        if not self._store.contains_named_graph(node):
+            return False
+        self._store.remove_graph(node)
+        self._store.flush() if self.path is not None else None
+        return True
+
+    # -- reading ------------------------------------------------------------------------
+
+    def graphs(self) -> list[str]:
+        return sorted(g.value for g in self._store.named_graphs()
+                      if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING))
+
+    def has_graph(self, graph: str) -> bool:
+        return self._store.contains_named_graph(ox.NamedNode(graph))
+
+    def query(self, sparql: str, **kwargs: Any) -> Any:
+        return self._store.query(sparql, **kwargs)
+
+    def count(self, graph: str | None = None) -> int:
+        if graph is None:
+            return len(self._store)
+        return sum(1 for _ in self._store.quads_for_pattern(None, None, None, ox.NamedNode(graph)))
+
+    def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
+        return iter(self._store.quads_for_pattern(None, None, None, ox.NamedNode(graph) if graph else None))
+
+    def dump(self, fmt: ox.RdfFormat, graph: str | None = None, prefixes: dict[str, str] | None = None) -> bytes:
+        kwargs: dict[str, Any] = {}
+        if graph is not None:
+            kwargs["from_graph"] = ox.NamedNode(graph)
+        if prefixes and fmt in (ox.RdfFormat.TURTLE, ox.RdfFormat.TRIG):
+            kwargs["prefixes"] = prefixes
+        out = self._store.dump(None, fmt, **kwargs)
+        return out if out is not None else b""
+
+    @property
+    def oxigraph(self) -> ox.Store:
+        """The underlying pyoxigraph store (for SPARQL users who want it directly)."""
+        return self._store
+
+    def rdflib_dataset(self) -> Any:
+        """An rdflib ``Dataset`` over the same data (oxrdflib), for rdflib/pySHACL users."""
+        import rdflib
+        from oxrdflib.store import OxigraphStore
+
+        return rdflib.Dataset(store=OxigraphStore(store=self._store))
