@@ -1,0 +1,228 @@
+"""Write a loaded graph back as a Part 21 file.
+
+The inverse of :mod:`stepnc_graph.mapping.mapper`, driven by the same plans:
+each instance node becomes ``#id=NAME(...)`` with its parameters in Part 21
+order -- missing values ``$``, ``p21:derivedValue`` ``*``, ``rdf:List`` in
+order, SET members sorted (sets have no order) -- and each ``p21:RawInstance``
+its source text, verbatim. Instances keep their ``p21:id``; nodes without one
+(added by SPARQL Update, say) get fresh ids above the largest.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from collections.abc import Iterable
+from typing import Any
+
+import pyoxigraph as ox
+
+from stepnc_graph.mapping.plan import (
+    P21_DERIVED,
+    P21_EMPTY,
+    P21_ID,
+    P21_RAW,
+    P21_RAW_TEXT,
+    P21_UNKNOWN,
+    P21_UNSET,
+    P21_VALUE,
+    Encoding,
+    Plans,
+    Slot,
+)
+from stepnc_graph.mapping.terms import RDF, RDF_TYPE, XSD
+from stepnc_graph.naming import P21_NS
+from stepnc_graph.part21.strings import encode
+
+_TRAILING_ID = re.compile(r"i([0-9]+)$")
+_DEFAULT_HEADER = ("HEADER;\nFILE_DESCRIPTION(('stepnc-graph export'),'2;1');\n"
+                   "FILE_NAME('','',(''),(''),'stepnc-graph','stepnc-graph','');\n"
+                   "FILE_SCHEMA(({schemas}));\nENDSEC;")
+
+
+class WriteError(ValueError):
+    """A graph that cannot be written as Part 21 (a value that fits no parameter)."""
+
+
+def _key(term: Any) -> str:
+    return f"_:{term.value}" if isinstance(term, ox.BlankNode) else f"<{term.value}>"
+
+
+def format_real(value: float) -> str:
+    """A Part 21 REAL: always with a decimal point (``1.``, ``2.5E-03``)."""
+    text = repr(float(value))
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        return (mantissa if "." in mantissa else mantissa + ".") + "E" + exponent
+    if text in ("inf", "-inf", "nan"):
+        raise WriteError(f"{text} cannot be written in Part 21")
+    return text
+
+
+class Part21Writer:
+    """Serialises the triples of one graph (given as quads) to Part 21 text."""
+
+    def __init__(self, plans: Plans) -> None:
+        self.plans = plans
+        self.enum_items = {iri: item for p in plans._enc.values() for item, iri in p.items.items()}
+        for plan in plans.entities.values():
+            for slot in plan.slots:
+                self._collect_items(slot.encoding)
+        self.typed_names: dict[str, str] = {}
+        for enc in list(plans._enc.values()):
+            for name, (cls, _inner) in enc.typed.items():
+                self.typed_names[cls] = name
+
+    def _collect_items(self, enc: Encoding | None) -> None:
+        while enc is not None:
+            for item, iri in enc.items.items():
+                self.enum_items[iri] = item
+            enc = enc.element
+
+    # -- reading the graph ----------------------------------------------------------
+
+    def write(self, quads: Iterable[ox.Quad], graph: str | None = None) -> str:
+        props: dict[str, dict[str, list[Any]]] = defaultdict(lambda: defaultdict(list))
+        for q in quads:
+            props[_key(q.subject)][f"<{q.predicate.value}>"].append(q.object)
+        self.props = props
+        header_text = None
+        if graph is not None and f"<{graph}>" in props:
+            texts = props[f"<{graph}>"].get(f"<{P21_NS}headerText>")
+            header_text = texts[0].value if texts else None
+        instances = self._instances(props)
+        self.ids = {key: i for i, key in instances}
+        body = [self._instance(i, key) for i, key in instances]
+        schemas = self._schemas(props, graph)
+        header = header_text or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
+        return "ISO-10303-21;\n" + header + "\nDATA;\n" + "\n".join(body) + "\nENDSEC;\nEND-ISO-10303-21;\n"
+
+    def _schemas(self, props: dict[str, Any], graph: str | None) -> list[str]:
+        if graph is not None and f"<{graph}>" in props:
+            names = [t.value for t in props[f"<{graph}>"].get(f"<{P21_NS}schemaName>", [])]
+            if names:
+                return names
+        return ["MACHINING_SCHEMA", "MILLING_SCHEMA", "TURNING_SCHEMA"]
+
+    def _instances(self, props: dict[str, dict[str, list[Any]]]) -> list[tuple[int, str]]:
+        numbered: list[tuple[int, str]] = []
+        unnumbered: list[str] = []
+        for key, p in props.items():
+            if not key.startswith("<"):
+                continue
+            ids = p.get(P21_ID)
+            if ids:
+                numbered.append((int(ids[0].value), key))
+            elif any(f"<{t.value}>" == P21_RAW or t.value in self.plans.by_class for t in p.get(RDF_TYPE, [])):
+                unnumbered.append(key)
+        next_id = max((i for i, _ in numbered), default=0) + 1
+        for key in sorted(unnumbered):
+            numbered.append((next_id, key))
+            next_id += 1
+        return sorted(numbered)
+
+    # -- instances ------------------------------------------------------------------
+
+    def _instance(self, p21_id: int, key: str) -> str:
+        p = self.props[key]
+        types = [t.value for t in p.get(RDF_TYPE, [])]
+        if P21_RAW[1:-1] in types:
+            return p[P21_RAW_TEXT][0].value
+        plans = [self.plans.by_class[t] for t in types if t in self.plans.by_class]
+        if not plans:
+            raise WriteError(f"{key} (#{p21_id}) has no entity type of the schema")
+        if len(plans) == 1:
+            return f"#{p21_id}={plans[0].name.upper()}({self._params(key, plans[0].slots)});"
+        model = self.plans.model
+        leaves = [pl for pl in plans if not any(o is not pl and model.is_subtype(o.name, pl.name) for o in plans)]
+        parts = "".join(f"{pl.name.upper()}({self._params(key, pl.own_slots)})"
+                        for pl in sorted(leaves, key=lambda pl: pl.name))
+        return f"#{p21_id}=({parts});"
+
+    def _params(self, key: str, slots: tuple[Slot, ...]) -> str:
+        p = self.props[key]
+        derived = {t.value for t in p.get(P21_DERIVED, [])}
+        empty = {t.value for t in p.get(P21_EMPTY, [])}
+        out = []
+        for slot in slots:
+            values = p.get(f"<{slot.prop}>", [])
+            if slot.prop in derived:
+                out.append("*")
+            elif slot.repeated:
+                if slot.prop in empty:
+                    out.append("()")
+                elif values:
+                    out.append("(" + ",".join(sorted(self._value(slot.encoding, v) for v in values)) + ")")
+                else:
+                    out.append("$")
+            elif values:
+                out.append(self._value(slot.encoding, values[0]))
+            else:
+                out.append("$")
+        return ",".join(out)
+
+    # -- values -----------------------------------------------------------------------
+
+    def _ref(self, term: Any) -> str:
+        key = _key(term)
+        if key in self.ids:
+            return f"#{self.ids[key]}"
+        m = _TRAILING_ID.search(term.value)
+        if m:  # an unresolved reference kept from the source file
+            return f"#{m.group(1)}"
+        raise WriteError(f"{term.value} is not an instance of the graph")
+
+    def _value(self, enc: Encoding, term: Any) -> str:
+        if isinstance(term, ox.Literal):
+            return self._literal(enc, term)
+        if isinstance(term, ox.BlankNode):
+            key = _key(term)
+            p = self.props.get(key, {})
+            if f"<{RDF}first>" in p or key == f"<{RDF}nil>":
+                return self._list(enc, term)
+            types = [t.value for t in p.get(RDF_TYPE, [])]
+            for t in types:
+                if t in self.typed_names:
+                    inner = enc.typed[self.typed_names[t]][1]
+                    return f"{self.typed_names[t]}({self._value(inner, p[P21_VALUE][0])})"
+            raise WriteError(f"blank node {key} is neither a list nor a typed value")
+        if term.value == RDF + "nil":
+            return "()"
+        if f"<{term.value}>" == P21_UNSET:
+            return "$"
+        if term.value in self.enum_items:
+            return f".{self.enum_items[term.value]}."
+        return self._ref(term)
+
+    def _list(self, enc: Encoding, head: Any) -> str:
+        element = enc.element or enc
+        items = []
+        node = head
+        seen = 0
+        while not (isinstance(node, ox.NamedNode) and node.value == RDF + "nil"):
+            p = self.props.get(_key(node))
+            if not p or seen > 10_000_000:
+                raise WriteError("malformed rdf:List")
+            items.append(self._value(element, p[f"<{RDF}first>"][0]))
+            node = p[f"<{RDF}rest>"][0]
+            seen += 1
+        return "(" + ",".join(items) + ")"
+
+    def _literal(self, enc: Encoding, lit: ox.Literal) -> str:
+        dt = lit.datatype.value
+        if dt == XSD + "double" or dt == XSD + "decimal" or dt == XSD + "float":
+            return format_real(float(lit.value))
+        if dt == XSD + "integer":
+            return lit.value if enc.kind != "real" else format_real(float(lit.value))
+        if dt == XSD + "boolean":
+            return ".T." if lit.value in ("true", "1") else ".F."
+        if dt == P21_UNKNOWN:
+            return ".U."
+        if dt == XSD + "hexBinary":
+            return f'"0{lit.value}"'
+        return encode(lit.value)
+
+
+def write_graph(plans: Plans, quads: Iterable[ox.Quad], graph: str | None = None) -> str:
+    return Part21Writer(plans).write(quads, graph)
+
