@@ -1,3 +1,15 @@
-"""stepnc-graph: ISO 14649 (STEP-NC) process data as a knowledge graph."""
+"""stepnc-graph: ISO 14649 (STEP-NC) process data as a knowledge graph.
+
+The Python API (see :mod:`stepnc_graph.api`)::
+
+    import stepnc_graph as sg
+    store = sg.open_store(memory=True)
+    [result] = sg.load(store, ["examples/shaft_two_setups.stp"])
+    sg.export(store, "ttl", result.graph)
+"""
 
 __version__ = "0.1.0"
+
+from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload  # noqa: E402
+
+__all__ = ["GraphInfo", "LoadResult", "__version__", "export", "info", "load", "open_store", "unload"]

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from stepnc_graph.generators.html import HtmlReferenceGenerator
+from stepnc_graph.generators.jsonld import JsonLdContextGenerator
 from stepnc_graph.generators.owl import OwlGenerator
 from stepnc_graph.generators.p21 import P21VocabularyGenerator
 from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
@@ -32,6 +33,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
         out[f"ontology/{rel}"] = text
     for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
+        out[f"ontology/{rel}"] = text
+    for rel, text in JsonLdContextGenerator(naming).outputs().items():
         out[f"ontology/{rel}"] = text
     for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():
         out[f"docs/{rel}"] = text

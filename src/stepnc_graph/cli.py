@@ -163,5 +163,187 @@ def schema_check(files: tuple[Path, ...], parse_only: bool, fmt: str) -> None:
         out.print(f"{len(parsed)} schema(s) parsed")
 
 
+@schema.command("entity")
+@click.argument("names", nargs=-1, required=True)
+def schema_entity(names: tuple[str, ...]) -> None:
+    """Show entities of the shipped schemas: supertypes and Part 21 parameters in order.
+
+    Exit 2 if a name is not an entity.
+    """
+    from stepnc_graph.schema.catalog import iso14649
+
+    _, model = iso14649()
+    status = EXIT_OK
+    for name in names:
+        decl = model.get(name)
+        if decl is None or model.kind_of(name) != "entity":
+            err.print(f"[bold red]error:[/] {name} is not an entity of the shipped schemas")
+            status = EXIT_BAD_INPUT
+            continue
+        e = model.entity(name)
+        clause = model.clause(e.name)
+        out.print(f"{e.name.upper()} ({e.schema}{', clause ' + clause if clause else ''})"
+                  f"{' ABSTRACT' if e.abstract else ''}; supertypes: {', '.join(model.ancestors(e.name)) or '-'}")
+        for slot in model.part21_attributes(e.name):
+            flags = (" OPTIONAL" if slot.optional else "") + (" (derived: *)" if slot.derived else "")
+            out.print(f"  {slot.index + 1:2d} {slot.name} : {slot.type}{flags}   [{slot.attribute.entity}]")
+    sys.exit(status)
+
+
+# -- Part 21 programs in the store ---------------------------------------------------
+
+_store_options = [
+    click.option("--store", "store_path", type=click.Path(file_okay=False, path_type=Path), default=None,
+                  help="Store directory (default: $STEPNC_GRAPH_STORE, else ./.stepnc-graph)."),
+    click.option("--memory", is_flag=True, help="Use a throw-away in-memory store."),
+]
+
+
+def _with_store(f):  # type: ignore[no-untyped-def]
+    for option in reversed(_store_options):
+        f = option(f)
+    return f
+
+
+def _open(store_path: Path | None, memory: bool):  # type: ignore[no-untyped-def]
+    from stepnc_graph.api import open_store
+    from stepnc_graph.store import StoreError
+
+    try:
+        return open_store(store_path, memory)
+    except StoreError as exc:
+        err.print(f"[bold red]error:[/] {exc}")
+        sys.exit(EXIT_BAD_INPUT)
+
+
+def _progress_bar():  # type: ignore[no-untyped-def]
+    from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+
+    return Progress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
+                    TimeRemainingColumn(), console=err, transient=True)
+
+
+@main.command("load")
+@click.argument("files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@_with_store
+@click.option("--lenient", is_flag=True,
+              help="Recover from syntax errors instance by instance and report them, instead of stopping.")
+@click.option("--base-iri", default=None,
+              help="IRI of the file's named graph (instances are <IRI>/i<id>); with several files, a prefix "
+                   "to which each file name is added. Default: https://w3id.org/stepnc-graph/data/<file name>.")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+def load_cmd(files: tuple[Path, ...], store_path: Path | None, memory: bool, lenient: bool,
+             base_iri: str | None, fmt: str) -> None:
+    """Load Part 21 FILES into the store, one named graph per file.
+
+    Loading a file again replaces its graph; a load that fails leaves the store
+    as it was. Schema problems (unknown entity, wrong parameter count or value
+    type, unresolved reference) are reported and the instance is kept raw, so
+    nothing is lost.
+
+    Exit codes: 0 loaded cleanly, 1 loaded with diagnostics, 2 a file could not
+    be loaded (syntax error in strict mode) or bad usage.
+    """
+    from stepnc_graph.api import graph_iri_for
+    from stepnc_graph.load import load_file
+    from stepnc_graph.part21 import Part21SyntaxError
+
+    store = _open(store_path, memory)
+    results, failures = [], []
+    for path in files:
+        graph = graph_iri_for(path, base_iri, len(files) > 1)
+        big = path.stat().st_size > (1 << 20) and err.is_terminal and fmt == "text"
+        try:
+            if big:
+                with _progress_bar() as bar:
+                    task = bar.add_task(f"loading {path.name}", total=path.stat().st_size)
+                    results.append(load_file(store, path, lenient=lenient, base_iri=graph,
+                                             progress=lambda done, total: bar.update(task, completed=done,
+                                                                                     total=total)))
+            else:
+                results.append(load_file(store, path, lenient=lenient, base_iri=graph))
+        except Part21SyntaxError as exc:
+            failures.append(exc)
+            if fmt == "text":
+                err.print(f"[bold red]error:[/] {exc}\n[dim]nothing loaded from {path}; "
+                          f"--lenient loads what can be read[/]")
+    if fmt == "json":
+        doc = {"files": [r.asdict() for r in results], "errors": [e.asdict() for e in failures]}
+        click.echo(json.dumps(doc, indent=2))
+    else:
+        for r in results:
+            errors = sum(d.severity == "error" for d in r.diagnostics)
+            out.print(f"loaded {r.path} -> {r.graph}\n  {r.instances} instances ({r.raw} kept raw), "
+                      f"{r.triples} triples, {len(r.diagnostics)} diagnostics ({errors} errors) in {r.seconds:.2f} s")
+            for d in r.diagnostics:
+                colour = {"error": "red", "warning": "yellow"}.get(d.severity, "blue")
+                ident = f" #{d.p21_id}" if d.p21_id is not None else ""
+                out.print(f"  [{colour}]{d.severity}[/] {d.line}:{d.column}{ident} {d.code}: {d.message}",
+                          markup=True, highlight=False)
+    if failures:
+        sys.exit(EXIT_BAD_INPUT)
+    sys.exit(EXIT_NONCONFORMING if any(r.diagnostics for r in results) else EXIT_OK)
+
+
+@main.command("export")
+@_with_store
+@click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
+                                            "or the only one.")
+@click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "p21"]), required=True,
+              help="p21 writes the graph back as a Part 21 file.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write here instead of standard output.")
+def export_cmd(store_path: Path | None, memory: bool, graph: str | None, fmt: str, output: Path | None) -> None:
+    """Export one graph or the whole store as RDF or as Part 21."""
+    from stepnc_graph.export import ExportError, export
+
+    store = _open(store_path, memory)
+    try:
+        data = export(store, fmt, graph)
+    except ExportError as exc:
+        err.print(f"[bold red]error:[/] {exc}")
+        sys.exit(EXIT_BAD_INPUT)
+    if output is None:
+        sys.stdout.buffer.write(data)
+        sys.stdout.flush()
+    else:
+        output.write_bytes(data)
+        err.print(f"wrote {output} ({len(data)} bytes)")
+
+
+@main.command("unload")
+@click.argument("graphs", nargs=-1, required=True)
+@_with_store
+def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, memory: bool) -> None:
+    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`). Exit 1 if one was absent."""
+    from stepnc_graph.api import unload
+
+    store = _open(store_path, memory)
+    missing = [g for g in graphs if not unload(store, g)]
+    for g in graphs:
+        out.print(f"{'not in the store' if g in missing else 'removed'}: {g}")
+    sys.exit(EXIT_NONCONFORMING if missing else EXIT_OK)
+
+
+@main.command("info")
+@_with_store
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+def info_cmd(store_path: Path | None, memory: bool, fmt: str) -> None:
+    """List the graphs in the store with their source file and counts."""
+    from stepnc_graph.api import info
+
+    rows = info(_open(store_path, memory))
+    if fmt == "json":
+        click.echo(json.dumps({"graphs": [r.asdict() for r in rows]}, indent=2))
+        return
+    table = Table(title=f"{len(rows)} graph(s)")
+    for col in ("graph", "source", "instances", "raw", "triples", "diagnostics", "loaded"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(r.graph, r.source or "", str(r.instances), str(r.raw_instances), str(r.triples),
+                      str(r.diagnostics), r.loaded or "")
+    out.print(table)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()
