@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from stepnc_graph.export import export
-from stepnc_graph.load import LoadResult, Progress, load_file
+from stepnc_graph.loader import LoadResult, Progress, load_file
 from stepnc_graph.naming import P21_NS, default_graph_iri, instance_prefix
 from stepnc_graph.store import GraphStore, default_store_path
 

@@ -11,7 +11,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 import click
 from rich.console import Console
@@ -22,6 +22,11 @@ from stepnc_graph.express import ExpressSyntaxError, parse_file
 from stepnc_graph.express.parser import ParsedSchema
 from stepnc_graph.resources import data_root
 from stepnc_graph.schema import SchemaError, SchemaErrors, build_model
+
+if TYPE_CHECKING:
+    from stepnc_graph.loader import LoadResult
+    from stepnc_graph.part21 import Part21SyntaxError
+    from stepnc_graph.store import GraphStore
 
 EXIT_OK, EXIT_NONCONFORMING, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -205,7 +210,7 @@ def _with_store(f):  # type: ignore[no-untyped-def]
     return f
 
 
-def _open(store_path: Path | None, memory: bool):  # type: ignore[no-untyped-def]
+def _open(store_path: Path | None, memory: bool) -> GraphStore:
     from stepnc_graph.api import open_store
     from stepnc_graph.store import StoreError
 
@@ -244,12 +249,19 @@ def load_cmd(files: tuple[Path, ...], store_path: Path | None, memory: bool, len
     Exit codes: 0 loaded cleanly, 1 loaded with diagnostics, 2 a file could not
     be loaded (syntax error in strict mode) or bad usage.
     """
+    with _open(store_path, memory) as store:
+        results, failures = _load_all(store, files, lenient, base_iri, fmt)
+    _report_loads(results, failures, fmt)
+
+
+def _load_all(store: GraphStore, files: tuple[Path, ...], lenient: bool, base_iri: str | None,
+              fmt: str) -> tuple[list[LoadResult], list[Part21SyntaxError]]:
     from stepnc_graph.api import graph_iri_for
-    from stepnc_graph.load import load_file
+    from stepnc_graph.loader import load_file
     from stepnc_graph.part21 import Part21SyntaxError
 
-    store = _open(store_path, memory)
-    results, failures = [], []
+    results: list[LoadResult] = []
+    failures: list[Part21SyntaxError] = []
     for path in files:
         graph = graph_iri_for(path, base_iri, len(files) > 1)
         big = path.stat().st_size > (1 << 20) and err.is_terminal and fmt == "text"
@@ -267,6 +279,10 @@ def load_cmd(files: tuple[Path, ...], store_path: Path | None, memory: bool, len
             if fmt == "text":
                 err.print(f"[bold red]error:[/] {exc}\n[dim]nothing loaded from {path}; "
                           f"--lenient loads what can be read[/]")
+    return results, failures
+
+
+def _report_loads(results: list[LoadResult], failures: list[Part21SyntaxError], fmt: str) -> NoReturn:
     if fmt == "json":
         doc = {"files": [r.asdict() for r in results], "errors": [e.asdict() for e in failures]}
         click.echo(json.dumps(doc, indent=2))
@@ -297,12 +313,12 @@ def export_cmd(store_path: Path | None, memory: bool, graph: str | None, fmt: st
     """Export one graph or the whole store as RDF or as Part 21."""
     from stepnc_graph.export import ExportError, export
 
-    store = _open(store_path, memory)
-    try:
-        data = export(store, fmt, graph)
-    except ExportError as exc:
-        err.print(f"[bold red]error:[/] {exc}")
-        sys.exit(EXIT_BAD_INPUT)
+    with _open(store_path, memory) as store:
+        try:
+            data = export(store, fmt, graph)
+        except ExportError as exc:
+            err.print(f"[bold red]error:[/] {exc}")
+            sys.exit(EXIT_BAD_INPUT)
     if output is None:
         sys.stdout.buffer.write(data)
         sys.stdout.flush()
@@ -318,8 +334,8 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, memory: bool) -
     """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`). Exit 1 if one was absent."""
     from stepnc_graph.api import unload
 
-    store = _open(store_path, memory)
-    missing = [g for g in graphs if not unload(store, g)]
+    with _open(store_path, memory) as store:
+        missing = [g for g in graphs if not unload(store, g)]
     for g in graphs:
         out.print(f"{'not in the store' if g in missing else 'removed'}: {g}")
     sys.exit(EXIT_NONCONFORMING if missing else EXIT_OK)
@@ -332,7 +348,8 @@ def info_cmd(store_path: Path | None, memory: bool, fmt: str) -> None:
     """List the graphs in the store with their source file and counts."""
     from stepnc_graph.api import info
 
-    rows = info(_open(store_path, memory))
+    with _open(store_path, memory) as store:
+        rows = info(store)
     if fmt == "json":
         click.echo(json.dumps({"graphs": [r.asdict() for r in rows]}, indent=2))
         return

@@ -104,6 +104,20 @@ class GraphStore:
         except OSError as e:
             raise StoreError(f"cannot open the store in {self.path}: {e}") from None
 
+    def close(self) -> None:
+        """Release the database (and its lock, for an on-disk store). Idempotent."""
+        if getattr(self, "_store", None) is not None:
+            if self.path is not None:
+                self._store.flush()
+            self._store = None  # type: ignore[assignment]
+            gc.collect()
+
+    def __enter__(self) -> "GraphStore":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     # -- journal ------------------------------------------------------------------
 
     @property
@@ -133,10 +147,11 @@ class GraphStore:
     # -- writing ----------------------------------------------------------------------
 
     def replace_graph(self, graph: str, chunks: Iterable[str],
-                      before_commit: Callable[[], None] | None = None) -> None:
+                      before_commit: Callable[[str], None] | None = None) -> None:
         """Atomically make ``graph`` hold exactly the N-Triples in ``chunks``.
 
-        ``before_commit`` runs after the data is in place but before the load is
+        ``before_commit(name)`` runs after the data is in the store (in graph
+        ``name``, which may be a staging graph) but before the load is
         committed; an exception from it (or from ``chunks``) rolls back.
         """
         if self.path is None:
@@ -151,7 +166,7 @@ class GraphStore:
             self._store.remove_graph(ox.NamedNode(graph))
             self._bulk_load(graph, chunks)
             if before_commit is not None:
-                before_commit()
+                before_commit(graph)
             self._store.flush()
         except BaseException:
             self._reopen()
@@ -169,12 +184,12 @@ class GraphStore:
             raise
 
     def _replace_in_memory(self, graph: str, chunks: Iterable[str],
-                           before_commit: Callable[[], None] | None) -> None:
+                           before_commit: Callable[[str], None] | None) -> None:
         staging = STAGING + uuid.uuid4().hex
         try:
             self._bulk_load(staging, chunks)
             if before_commit is not None:
-                before_commit()
+                before_commit(staging)
         except BaseException:
             self._store.remove_graph(ox.NamedNode(staging))
             raise

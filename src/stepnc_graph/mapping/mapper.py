@@ -171,8 +171,11 @@ class InstanceMapper:
                         raise Mismatch("P21-VALUE-TYPE", f"expected a SET, found {describe(value)}")
                     if not value:
                         out.append(f"{s} {P21_EMPTY} <{slot.prop}> .\n")
-                    for v in value:
-                        out.append(f"{s} <{slot.prop}> {self.encode(slot.encoding, v, out)} .\n")
+                    members = [self.encode(slot.encoding, v, out) for v in value]
+                    if len(set(members)) != len(members):
+                        # repeated triples would merge them: report instead of losing one
+                        raise Mismatch("P21-VALUE-TYPE", f"a SET cannot hold a member twice: {describe(value)}")
+                    out.extend(f"{s} <{slot.prop}> {m} .\n" for m in members)
                 else:
                     out.append(f"{s} <{slot.prop}> {self.encode(slot.encoding, value, out)} .\n")
             except Mismatch as m:

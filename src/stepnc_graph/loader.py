@@ -176,13 +176,13 @@ class _Load:
         found = self.schema_diagnostics() + self.reader.diagnostics + self.mapper.diagnostics
         return sorted(found, key=lambda d: (d.line, d.column, d.code))
 
-    def dangling(self, store: GraphStore) -> list[Diagnostic]:
+    def dangling(self, store: GraphStore, where: str) -> list[Diagnostic]:
         """References to instances the reader could not read (lenient mode only)."""
         dropped = {d.p21_id for d in self.reader.diagnostics if d.code == "P21-SYNTAX" and d.p21_id is not None}
         if not dropped:
             return []
         prefix = instance_prefix(self.graph)
-        graph = ox.NamedNode(self.graph)
+        graph = ox.NamedNode(where)  # the graph holding the data now (maybe a staging graph)
         ox_store = store.oxigraph
         out = []
         for target in sorted(dropped):
@@ -216,8 +216,8 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
     job = _Load(p, decode_bytes(raw), raw, lenient, base_iri or default_graph_iri(str(p)), progress)
     extra: list[Diagnostic] = []
 
-    def before_commit() -> None:
-        extra.extend(job.dangling(store))
+    def before_commit(where: str) -> None:
+        extra.extend(job.dangling(store, where))
 
     store.replace_graph(job.graph, job.chunks(), before_commit)
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))
