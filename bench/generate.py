@@ -1,0 +1,122 @@
+"""Schema-valid synthetic turning programs for the benchmark, of any size.
+
+    python bench/generate.py 100000 /tmp/turning_100k.stp
+
+The mix is that of a real turning program with explicit toolpaths: a project,
+a workpiece, a few tools and technologies shared by all steps, then repeated
+"units" of one feature (outer diameter with its placement and tolerances), one
+roughing operation with its strategy, one workingstep and an explicit
+cutter-location toolpath whose polyline has many points -- so geometry
+dominates, as it does in real files. Every instance conforms to the shipped
+schemas: loading a generated file gives zero diagnostics (checked by
+tests/test_bench_generator.py).
+"""
+
+from __future__ import annotations
+
+import random
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+POINTS_PER_PATH = 40
+UNIT_FIXED = 14  # non-point instances per unit (see _unit)
+HEAD = 27  # instances before the first unit (see _preamble)
+
+
+def _preamble() -> list[str]:
+    return [
+        "#1=PROJECT('SYNTHETIC SHAFT',#2,(#3),$,$,$);",
+        "#3=WORKPIECE('BLANK D80',#4,$,$,$,$,());",
+        "#4=MATERIAL('EN 10083-2','C45',(#5));",
+        "#5=PROPERTY_PARAMETER('HB 200');",
+        "#6=SETUP('SETUP 1',#7,#10,(#11));",
+        "#7=AXIS2_PLACEMENT_3D('SETUP',#8,#9,$);",
+        "#8=CARTESIAN_POINT('ORIGIN',(0.,0.,0.));",
+        "#9=DIRECTION('+Z',(0.,0.,1.));",
+        "#10=PLANE('SECURITY PLANE',#7);",
+        "#11=WORKPIECE_SETUP(#3,#7,$,$,());",
+        "#12=TURNING_MACHINE_TOOL('T01',#13,(#15),120.,25.,$);",
+        "#13=GENERAL_TURNING_TOOL(#14,.RIGHT.,4.,$,25.,25.,.CCW.);",
+        "#14=TURNING_TOOL_DIMENSION(12.,5.,-5.,-6.,-6.,6.,$,6.,$,0.8,12.7);",
+        "#15=CUTTING_COMPONENT(120.,#16,$,$,$);",
+        "#16=MATERIAL('ISO 513','P25',());",
+        "#17=TURNING_TECHNOLOGY(0.25,.TCP.,#18,.F.,.F.,.F.);",
+        "#18=CONST_CUTTING_SPEED(180.,2500.);",
+        "#19=TURNING_MACHINE_FUNCTIONS(.T.,$,$,.F.,$,(),.T.,$,$,(),.F.,$,$);",
+        "#20=DIAGONAL_UNIDIRECTIONAL($,.T.,(2.5,2.5),$,$,1.,$,45.);",
+        "#21=PLUS_MINUS_VALUE(0.05,0.05,2);",
+        "#22=DIRECTION('+X',(1.,0.,0.));",
+        "#23=PLUNGE_RAMP($,45.);",
+        "#24=TOLERANCED_LENGTH_MEASURE(40.,#21);",
+        "#25=TOLERANCED_LENGTH_MEASURE(10.,#21);",
+        "#26=CONST_SPINDLE_SPEED(800.);",
+        "#27=TURNING_TECHNOLOGY(0.1,.TCP.,#26,.F.,.F.,.F.);",
+    ]
+
+
+def _unit(first: int, rng: random.Random, k: int) -> tuple[list[str], int]:
+    """One feature + operation + workingstep + toolpath; returns its lines and the workingstep id."""
+    i = first
+    z = -10.0 * k
+    lines = [
+        f"#{i}=OUTER_DIAMETER('OD {k}',#3,(#{i + 4}),#{i + 1},#24,#25,$);",
+        f"#{i + 1}=AXIS2_PLACEMENT_3D('OD {k}',#{i + 2},#9,#22);",
+        f"#{i + 2}=CARTESIAN_POINT('',(0.,0.,{z:.1f}));",
+        f"#{i + 3}=MACHINING_WORKINGSTEP('WS {k}',#10,#{i},#{i + 4},$);",
+        f"#{i + 4}=CONTOURING_ROUGH(#{i + 5},$,'ROUGH OD {k}',5.,$,#12,#{17 if k % 2 else 27},#19,#23,#23,#20,"
+        f"$,$,$,0.5);",
+        f"#{i + 5}=TOOLPATH_LIST((#{i + 6}));",
+        f"#{i + 6}=CUTTER_LOCATION_TRAJECTORY(.T.,.CONTACT.,$,$,$,.T.,#{i + 7},$,$);",
+    ]
+    points = [f"#{i + 8 + p}" for p in range(POINTS_PER_PATH)]
+    lines.append(f"#{i + 7}=POLYLINE('PATH {k}',({','.join(points)}));")
+    for p in range(POINTS_PER_PATH):
+        x, y = 40.0 - 0.05 * p + rng.uniform(-0.01, 0.01), rng.uniform(-0.001, 0.001)
+        lines.append(f"#{i + 8 + p}=CARTESIAN_POINT('',({x:.4f},{y:.4f},{z - 0.25 * p:.4f}));")
+    n = 8 + POINTS_PER_PATH
+    lines += [
+        f"#{i + n}=TOLERANCED_LENGTH_MEASURE({60 + k % 20}.,#21);",
+        f"#{i + n + 1}=NUMERIC_PARAMETER('STOCK {k}',{1 + k % 3}.,'mm');",
+        f"#{i + n + 2}=PROPERTY_PARAMETER('NOTE {k}: it''s step {k}');",
+        f"#{i + n + 3}=DIRECTION('',(0.,{rng.choice(['1.', '-1.'])},0.));",
+        f"#{i + n + 4}=CONST_SPINDLE_SPEED({600 + k % 400}.);",
+        f"#{i + n + 5}=TURNING_TECHNOLOGY(0.{1 + k % 3},.TCP.,#{i + n + 4},.F.,.F.,.F.);",
+    ]
+    return lines, i + 3
+
+
+def instances(n: int, seed: int = 0) -> Iterator[str]:
+    """About ``n`` instance lines (whole units; never fewer than ``n``)."""
+    rng = random.Random(seed)
+    per_unit = UNIT_FIXED + POINTS_PER_PATH
+    units = max(1, -(-(n - HEAD) // per_unit))
+    steps: list[int] = []
+    yield from _preamble()
+    next_id = 100
+    for k in range(units):
+        lines, ws = _unit(next_id, rng, k)
+        steps.append(ws)
+        next_id += per_unit
+        yield from lines
+    yield f"#2=WORKPLAN('MAIN WORKPLAN',({','.join(f'#{s}' for s in steps)}),$,#6,$);"
+
+
+def write(n: int, path: Path, seed: int = 0) -> int:
+    """Write a program of about ``n`` instances to ``path``; return the exact count."""
+    count = 0
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write("ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION(('stepnc-graph benchmark program'),'2;1');\n"
+                 f"FILE_NAME('{path.name}','2026-01-01T00:00:00',('bench'),('stepnc-graph'),'','','');\n"
+                 "FILE_SCHEMA(('MACHINING_SCHEMA','TURNING_SCHEMA','TURNING_MACHINE_TOOL_SCHEMA'));\n"
+                 "ENDSEC;\nDATA;\n")
+        for line in instances(n, seed):
+            fh.write(line)
+            fh.write("\n")
+            count += 1
+        fh.write("ENDSEC;\nEND-ISO-10303-21;\n")
+    return count
+
+
+if __name__ == "__main__":
+    print(write(int(sys.argv[1]), Path(sys.argv[2])))
