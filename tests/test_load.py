@@ -207,6 +207,17 @@ def test_every_code_is_tested() -> None:
 # -- the RDF representation ----------------------------------------------------------------
 
 
+S = rdflib.Namespace(STEPNC_NS)
+
+
+def load_clean(tmp_path: Path, data: str) -> tuple[GraphStore, sg.LoadResult, rdflib.Graph, rdflib.Namespace]:
+    """Load ``data`` into a fresh store, require no diagnostics; the graph and the instance namespace."""
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [program(tmp_path, data)])
+    assert r.diagnostics == []
+    return store, r, to_rdflib(store, r.graph), rdflib.Namespace(r.graph + "/")
+
+
 def test_representation(tmp_path: Path) -> None:
     data = """
 #1=TURNING_TECHNOLOGY(0.2,.TCP.,#2,.T.,.F.,.F.);
@@ -220,12 +231,7 @@ def test_representation(tmp_path: Path) -> None:
 #9=CUTTER_LOCATION_TRAJECTORY(.T.,.CONTACT.,POSITIVE_RATIO_MEASURE(0.5),$,$,$,#10,$,$);
 #10=POLYLINE('',(#3,#3));
 """
-    store = sg.open_store(memory=True)
-    [r] = sg.load(store, [program(tmp_path, data)])
-    assert r.diagnostics == []
-    g = to_rdflib(store, r.graph)
-    S = rdflib.Namespace(STEPNC_NS)
-    i = rdflib.Namespace(r.graph + "/")
+    store, r, g, i = load_clean(tmp_path, data)
     X = rdflib.Namespace("http://www.w3.org/2001/XMLSchema#")
     assert (i.i1, rdflib.RDF.type, S.turning_technology) in g
     assert (i.i1, S["technology.feedrate"], rdflib.Literal("0.2", datatype=X.double)) in g
@@ -250,12 +256,7 @@ def test_representation(tmp_path: Path) -> None:
 def test_complex_instance_and_derived_marker(tmp_path: Path) -> None:
     data = ("#1=(PROPERTY_PARAMETER('a')MATERIAL('s','m',()));\n"
             "#2=PROPERTY_PARAMETER(*);")
-    store = sg.open_store(memory=True)
-    [r] = sg.load(store, [program(tmp_path, data)])
-    assert r.diagnostics == []
-    g = to_rdflib(store, r.graph)
-    S = rdflib.Namespace(STEPNC_NS)
-    i = rdflib.Namespace(r.graph + "/")
+    store, r, g, i = load_clean(tmp_path, data)
     assert {S.property_parameter, S.material} <= set(g.objects(i.i1, rdflib.RDF.type))
     assert (i.i2, rdflib.URIRef(P21_NS + "derivedValue"), S["property_parameter.parameter_name"]) in g
     assert_round_trip(store, r.graph, tmp_path)
