@@ -347,19 +347,18 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, memory: bool) -
 def info_cmd(store_path: Path | None, memory: bool, fmt: str) -> None:
     """List the graphs in the store with their source file and counts."""
     from stepnc_graph.api import info
+    from stepnc_graph.store import default_store_path
 
     with _open(store_path, memory) as store:
         rows = info(store)
     if fmt == "json":
         click.echo(json.dumps({"graphs": [r.asdict() for r in rows]}, indent=2))
         return
-    table = Table(title=f"{len(rows)} graph(s)")
-    for col in ("graph", "source", "instances", "raw", "triples", "diagnostics", "loaded"):
-        table.add_column(col)
+    out.print(f"{len(rows)} graph(s) in {'memory' if memory else store_path or default_store_path()}")
     for r in rows:
-        table.add_row(r.graph, r.source or "", str(r.instances), str(r.raw_instances), str(r.triples),
-                      str(r.diagnostics), r.loaded or "")
-    out.print(table)
+        # one block per graph, IRI on its own line: it is what users copy into --graph / unload
+        out.print(f"{r.graph}\n  source {r.source}; {r.instances} instances ({r.raw_instances} raw), "
+                  f"{r.triples} triples, {r.diagnostics} diagnostics; loaded {r.loaded}")
 
 
 if __name__ == "__main__":  # pragma: no cover
