@@ -54,7 +54,7 @@ def main() -> None:
     print(f"{'schema file':42} {'lines':>6} {'median s':>9} {'lines/s':>9}  express-schema alone")
     for path in files:
         lines = path.read_text(encoding="utf-8", errors="replace").count("\n")
-        t = median_seconds(lambda: parse_file(path), args.repeat)
+        t = median_seconds(lambda p=path: parse_file(p), args.repeat)
         status = library_status(path, len(parse_file(path)))
         print(f"{path.name:42} {lines:6d} {t:9.3f} {lines / t:9.0f}  {status}")
     t_model = median_seconds(load_catalog_model, args.repeat)

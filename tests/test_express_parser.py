@@ -100,7 +100,7 @@ def test_random_text_raises_only_express_syntax_error(text: str) -> None:
 def test_blank_comments_preserves_length_and_line_breaks(text: str) -> None:
     clean = blank_comments(text)
     assert len(clean) == len(text)
-    for a, b in zip(text, clean):
+    for a, b in zip(text, clean, strict=True):
         if a in "\r\n":
             assert b == a
 

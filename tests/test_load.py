@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
@@ -15,7 +14,6 @@ import rdflib
 from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from rdflib.compare import graph_diff, isomorphic, to_isomorphic
 
 import stepnc_graph as sg
 from stepnc_graph.cli import main

@@ -127,7 +127,7 @@ def test_schema_error_fixtures(path: Path) -> None:
         build_model(parse_file(path))
     got = [(e.pos.line if e.pos else None, e.message) for e in info.value.errors]
     assert len(got) == len(expected), got
-    for (line, message), want in zip(got, expected):
+    for (line, message), want in zip(got, expected, strict=True):
         assert line == want["line"] and want["message"] in message, (line, message)
     assert info.value.errors[0].asdict()["file"] == str(path)
 
@@ -175,3 +175,12 @@ def test_turning_tool_constructs(iso_model) -> None:  # type: ignore[no-untyped-
     assert model.clause("knurl_pattern") == "4.3.4.1"
     ws = model.attribute("turning_workingstep", "its_features")
     assert ws is not None and str(ws.type) == "LIST [2:?] OF manufacturing_feature"
+
+
+def test_negative_and_expression_bounds() -> None:
+    m = model_of("SCHEMA s; CONSTANT n : INTEGER := 3; END_CONSTANT; ENTITY e; "
+                 "a : ARRAY [-1:1] OF OPTIONAL REAL; b : LIST [1:n] OF INTEGER; END_ENTITY; END_SCHEMA;")
+    a = m.attribute("e", "a")
+    b = m.attribute("e", "b")
+    assert a is not None and a.type == AggregateType("ARRAY", SimpleType(BaseType.REAL), -1, 1, optional_elements=True)
+    assert b is not None and isinstance(b.type, AggregateType) and b.type.upper is None and b.type.bound_text == "1:n"

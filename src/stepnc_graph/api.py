@@ -68,6 +68,10 @@ class GraphInfo:
         return asdict(self)
 
 
+def _int(value: str | None) -> int | None:
+    return int(value) if value is not None else None
+
+
 def info(store: GraphStore) -> list[GraphInfo]:
     """The graphs in the store with what their load recorded."""
     out = []
@@ -78,15 +82,8 @@ def info(store: GraphStore) -> list[GraphInfo]:
             f"OPTIONAL {{ <{g}> dcterms:source ?src }} OPTIONAL {{ <{g}> p21:instanceCount ?n }} "
             f"OPTIONAL {{ <{g}> p21:rawInstanceCount ?raw }} OPTIONAL {{ <{g}> p21:diagnosticCount ?d }} "
             f"OPTIONAL {{ <{g}> prov:generatedAtTime ?t }} }} }} LIMIT 1"))
-        row = rows[0] if rows else None
-
-        def val(name: str) -> Any:
-            term = row[name] if row is not None else None
-            return term.value if term is not None else None
-
-        def num(name: str) -> int | None:
-            v = val(name)
-            return int(v) if v is not None else None
-
-        out.append(GraphInfo(g, val("src"), store.count(g), num("n"), num("raw"), num("d"), val("t")))
+        values = {k: (t.value if t is not None else None) for k, t in
+                  zip(("src", "n", "raw", "d", "t"), rows[0], strict=True)} if rows else {}
+        out.append(GraphInfo(g, values.get("src"), store.count(g), _int(values.get("n")), _int(values.get("raw")),
+                             _int(values.get("d")), values.get("t")))
     return out

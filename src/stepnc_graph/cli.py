@@ -11,10 +11,12 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
 import click
 from rich.console import Console
+from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
 from rich.table import Table
 
 from stepnc_graph import __version__
@@ -160,8 +162,8 @@ def schema_check(files: tuple[Path, ...], parse_only: bool, fmt: str) -> None:
     if fmt == "json":
         click.echo(json.dumps(summary, indent=2))
         return
-    for f, seconds in timings.items():
-        out.print(f"parsed {f} in {seconds:.2f} s")
+    for name, seconds in timings.items():
+        out.print(f"parsed {name} in {seconds:.2f} s")
     if model is not None:
         out.print(f"{len(parsed)} schema(s) resolved: {len(model.entities)} entities, {len(model.types)} types")
     else:
@@ -204,7 +206,11 @@ _store_options = [
 ]
 
 
-def _with_store(f):  # type: ignore[no-untyped-def]
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _with_store(f: F) -> F:
+    """Add the --store / --memory options every store command shares."""
     for option in reversed(_store_options):
         f = option(f)
     return f
@@ -221,8 +227,7 @@ def _open(store_path: Path | None, memory: bool) -> GraphStore:
         sys.exit(EXIT_BAD_INPUT)
 
 
-def _progress_bar():  # type: ignore[no-untyped-def]
-    from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+def _progress_bar() -> Progress:
 
     return Progress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
                     TimeRemainingColumn(), console=err, transient=True)
@@ -269,9 +274,10 @@ def _load_all(store: GraphStore, files: tuple[Path, ...], lenient: bool, base_ir
             if big:
                 with _progress_bar() as bar:
                     task = bar.add_task(f"loading {path.name}", total=path.stat().st_size)
-                    results.append(load_file(store, path, lenient=lenient, base_iri=graph,
-                                             progress=lambda done, total: bar.update(task, completed=done,
-                                                                                     total=total)))
+                    def advance(done: int, total: int, task: Any = task) -> None:
+                        bar.update(task, completed=done, total=total)
+
+                    results.append(load_file(store, path, lenient=lenient, base_iri=graph, progress=advance))
             else:
                 results.append(load_file(store, path, lenient=lenient, base_iri=graph))
         except Part21SyntaxError as exc:

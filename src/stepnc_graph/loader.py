@@ -197,9 +197,9 @@ class _Load:
                 ids = list(ox_store.quads_for_pattern(owner, ox.NamedNode(P21_NS + "id"), None, graph))
                 lines = list(ox_store.quads_for_pattern(owner, ox.NamedNode(P21_NS + "line"), None, graph))
                 if ids and lines:
-                    out.append(Diagnostic.make(
-                        "P21-UNRESOLVED-REF", str(self.path), int(lines[0].object.value), 1,
-                        int(ids[0].object.value), f"refers to #{target}, which was not loaded (see its P21-SYNTAX error)"))
+                    line, p21_id = int(str(lines[0].object.value)), int(str(ids[0].object.value))  # type: ignore[union-attr]
+                    out.append(Diagnostic.make("P21-UNRESOLVED-REF", str(self.path), line, 1, p21_id,
+                                               f"refers to #{target}, which was not loaded (see its P21-SYNTAX error)"))
         return out
 
 

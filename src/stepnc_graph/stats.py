@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from rdflib import Graph, URIRef
+from rdflib import Graph, URIRef, Variable
 
 from stepnc_graph.schema.catalog import load_catalog_model
 
@@ -62,14 +62,15 @@ def ontology_stats(root: Path) -> list[SchemaStats]:
         if ttl.exists():
             g.parse(ttl, format="turtle")
         ontology = URIRef(catalog.ontology_base + name)
-        row = next(iter(g.query(_COUNT, initBindings={"o": ontology})))
+        binding = g.query(_COUNT, initBindings={"o": ontology}).bindings[0]
+        row = [int(str(binding[Variable(v)])) for v in ("entities", "types", "attributes")]
         out.append(SchemaStats(
             schema=name,
             express_entities=len(entities),
             express_types=len(decls) - len(entities),
             express_attributes=sum(len(model.entity(e.name).attributes) for e in entities),
-            owl_entities=int(row[0]),  # type: ignore[index]
-            owl_types=int(row[1]),  # type: ignore[index]
-            owl_attributes=int(row[2]),  # type: ignore[index]
+            owl_entities=row[0],
+            owl_types=row[1],
+            owl_attributes=row[2],
         ))
     return out

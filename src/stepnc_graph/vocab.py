@@ -506,7 +506,7 @@ class STEPNC(DefinedNamespace):
     xor_expression: URIRef
     year_number: URIRef
 
-    _extras = [
+    _extras: list[str] = [
         "address.country",
         "address.electronic_mail_address",
         "address.facsimile_number",
@@ -1364,5 +1364,5 @@ class P21(DefinedNamespace):
     value: URIRef
     whereRule: URIRef
 
-    _extras = [
+    _extras: list[str] = [
     ]

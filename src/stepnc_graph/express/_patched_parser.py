@@ -337,7 +337,7 @@ class PatchedParser(_ep._Parser):
         return result
 
 
-def parse_tokens(tokens):
+def parse_tokens(tokens: "list[lex.Token]") -> "tuple[Optional[_ep.Schema], Optional[list[_ep.Error]]]":
     """Like ``express_schema.parse.parse_tokens`` but with :class:`PatchedParser`."""
     tokens = [t for t in tokens if t.kind is not lex.TokenKind.COMMENT]
     parser = PatchedParser(tape=_ep._TokenTape(tokens))

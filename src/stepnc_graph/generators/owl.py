@@ -13,6 +13,7 @@ SELECT -> owl:Class, each member rdfs:subClassOf it, and owl:unionOf.
 from __future__ import annotations
 
 from rdflib import OWL, RDF, RDFS, XSD, BNode, Graph, Literal, URIRef
+from rdflib.term import Node
 from rdflib.collection import Collection
 from rdflib.namespace import DCTERMS
 
@@ -231,8 +232,8 @@ class OwlGenerator:
             f"Part 21 does inside a SELECT.")))
 
     def add_enumeration(self, g: Graph, iri: URIRef, t: EnumerationType) -> None:
-        items = [self.n.enum_item(t.name, item) for item in t.items]
-        for item, name in zip(items, t.items):
+        items: list[Node] = [self.n.enum_item(t.name, item) for item in t.items]
+        for item, name in zip(items, t.items, strict=True):
             g.add((item, RDF.type, OWL.NamedIndividual))
             g.add((item, RDF.type, iri))
             g.add((item, RDFS.label, Literal(name)))

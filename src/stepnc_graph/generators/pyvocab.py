@@ -34,7 +34,7 @@ def _class_source(name: str, namespace: str, terms: list[str], doc: str) -> str:
              f'    _NS = Namespace("{namespace}")', ""]
     lines += [f"    {t}: URIRef" for t in idents]
     lines.append("")
-    lines.append("    _extras = [")
+    lines.append("    _extras: list[str] = [")
     lines += [f'        "{t}",' for t in extras]
     lines.append("    ]")
     return "\n".join(lines) + "\n"

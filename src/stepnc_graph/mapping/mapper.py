@@ -159,7 +159,7 @@ class InstanceMapper:
     # -- instances ---------------------------------------------------------------
 
     def _slots(self, s: str, slots: tuple[Slot, ...], params: list[Any], out: list[str]) -> None:
-        for slot, value in zip(slots, params):
+        for slot, value in zip(slots, params, strict=True):  # counts checked by _count
             if value is UNSET:
                 continue
             if value is DERIVED:

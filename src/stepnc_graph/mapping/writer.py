@@ -127,7 +127,7 @@ class Part21Writer:
         p = self.props[key]
         types = [t.value for t in p.get(RDF_TYPE, [])]
         if P21_RAW[1:-1] in types:
-            return p[P21_RAW_TEXT][0].value
+            return str(p[P21_RAW_TEXT][0].value)
         plans = [self.plans.by_class[t] for t in types if t in self.plans.by_class]
         if not plans:
             raise WriteError(f"{key} (#{p21_id}) has no entity type of the schema")

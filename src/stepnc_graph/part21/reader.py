@@ -15,7 +15,7 @@ an error diagnostic naming its ``#id``, and goes on at the next instance.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -187,7 +187,7 @@ class Part21Reader:
             m = match(text, pos)
             if m is None:
                 raise _Failure("unexpected end of file inside a parameter list", pos, (")",))
-            kind = m.lastgroup
+            kind = m.lastgroup or "bad"
             start = pos
             pos = m.end()
             if kind == "ws":
@@ -338,7 +338,7 @@ class Part21Reader:
                 return
             pos = yield from self._data_section(section)
 
-    def _data_section(self, pos: int) -> Iterator[Instance]:
+    def _data_section(self, pos: int) -> Generator[Instance, None, int]:
         while True:
             kind, tok, start, end = self._token(pos)
             if kind == "kw" and tok.upper() == "ENDSEC":

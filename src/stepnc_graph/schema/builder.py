@@ -10,7 +10,7 @@ All problems are collected and raised together as :class:`SchemaErrors`.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, Literal
 
 import express_schema.parse as ast
 
@@ -18,6 +18,7 @@ from stepnc_graph.express.comments import blank_comments
 from stepnc_graph.express.parser import ParsedSchema
 from stepnc_graph.schema.errors import SchemaError, SchemaErrors
 from stepnc_graph.schema.model import (
+    AggregateKind,
     AggregateType,
     Attribute,
     BaseType,
@@ -94,7 +95,7 @@ def _int_bound(expr: Any) -> int | None:
     if isinstance(expr, ast.IntegerLiteral):
         return int(expr.value)
     if isinstance(expr, ast.UnaryExpr) and isinstance(expr.operand, ast.IntegerLiteral):
-        return -int(expr.operand.value) if expr.op is ast.UnaryOp.MINUS else int(expr.operand.value)
+        return -int(expr.operand.value) if expr.op is ast.UnaryOp.NEG else int(expr.operand.value)
     return None
 
 
@@ -115,12 +116,12 @@ class _Builder:
     def type_ref(self, node: Any, ft: _FileText, schema: str) -> TypeRef:
         if isinstance(node, ast.NamedType):
             return NamedType(str(node.reference).lower())
-        for cls, base in _SIMPLE.items():
-            if isinstance(node, cls):
+        for simple_class, base in _SIMPLE.items():
+            if isinstance(node, simple_class):
                 width = getattr(node, "width", None) or getattr(node, "precision_spec", None)
                 return SimpleType(base, _int_bound(width) if width is not None else None,
                                   bool(getattr(node, "fixed", False)))
-        kinds = {ast.ListType: "LIST", ast.SetType: "SET", ast.BagType: "BAG", ast.ArrayType: "ARRAY",
+        kinds: dict[type, AggregateKind] = {ast.ListType: "LIST", ast.SetType: "SET", ast.BagType: "BAG", ast.ArrayType: "ARRAY",
                  ast.ConformantListType: "LIST", ast.ConformantSetType: "SET",
                  ast.ConformantBagType: "BAG", ast.ConformantArrayType: "ARRAY"}
         for cls, kind in kinds.items():
@@ -134,7 +135,7 @@ class _Builder:
         self.error(f"unsupported type construct {type(node).__name__}", ft.pos(node), schema)
         return GenericType(None)
 
-    def aggregate(self, node: Any, kind: Any, ft: _FileText, schema: str) -> AggregateType:
+    def aggregate(self, node: Any, kind: AggregateKind, ft: _FileText, schema: str) -> AggregateType:
         spec = node.bound_spec
         lower: int | None = 0
         upper: int | None = None
@@ -169,7 +170,7 @@ class _Builder:
         if isinstance(node, ast.Choice):
             return SupertypeExpr("ONEOF", tuple(self.supertype_expr(x) for x in node.supertype_exprs))
         assert isinstance(node, ast.SupertypeBinaryExpr)
-        op = node.op.value
+        op: Literal["AND", "ANDOR"] = "AND" if node.op is ast.SupertypeBinaryOp.AND else "ANDOR"
         operands: list[SupertypeOperand] = []
         for side in (node.left, node.right):
             sub = self.supertype_expr(side)
@@ -236,7 +237,7 @@ class _Builder:
             type_: TypeRef = NamedType(target)
         else:
             target = str(it.entity).lower()
-            kind = "SET" if isinstance(it, ast.InverseSet) else "BAG"
+            kind: AggregateKind = "SET" if isinstance(it, ast.InverseSet) else "BAG"
             lower, upper = 0, None
             if it.bound_spec is not None:
                 lower = _int_bound(it.bound_spec.lower) or 0
@@ -292,8 +293,8 @@ class _Builder:
                 decl = self.entity(node, ft, name)
                 self.add(decl)
                 declared.append(decl.name)
-            for node in tree.type_declarations:
-                tdecl = self.type_decl(node, ft, name)
+            for type_node in tree.type_declarations:
+                tdecl = self.type_decl(type_node, ft, name)
                 self.add(tdecl)
                 declared.append(tdecl.name)
             self.schemas[name] = SchemaInfo(

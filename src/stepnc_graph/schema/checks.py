@@ -111,9 +111,9 @@ def check_cycles(model: SchemaModel) -> list[SchemaError]:
     errors = []
     if not nx.is_directed_acyclic_graph(model.hierarchy):
         cycle = nx.find_cycle(model.hierarchy)
-        first = model.entity(cycle[0][0])
+        entity = model.entity(cycle[0][0])
         errors.append(SchemaError("supertype cycle: " + " -> ".join(u for u, _ in cycle) + f" -> {cycle[0][0]}",
-                                  first.pos, first.schema))
+                                  entity.pos, entity.schema))
     g: nx.DiGraph = nx.DiGraph()
     for t in model.types.values():
         if isinstance(t, DefinedType) and isinstance(t.underlying, NamedType):

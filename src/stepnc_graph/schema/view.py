@@ -227,13 +227,13 @@ class SchemaModel:
                 overrides[target.key] = r  # nearest redeclaration wins
         slots = []
         for i, a in enumerate(ordered):
-            r = overrides.get(a.key)
+            redeclared = overrides.get(a.key)
             slots.append(Part21Slot(
                 index=i,
                 attribute=a,
-                type=r.type if r else a.type,
-                optional=(r.optional if r and not r.derived else a.optional),
-                derived=bool(r and r.derived),
+                type=redeclared.type if redeclared else a.type,
+                optional=(redeclared.optional if redeclared and not redeclared.derived else a.optional),
+                derived=bool(redeclared and redeclared.derived),
             ))
         self._p21[key] = tuple(slots)
         return self._p21[key]
