@@ -425,12 +425,9 @@ def test_random_schema_valid_programs_load_cleanly_and_round_trip(seed: int) -> 
 
 def _norm_instance(inst: object) -> tuple[str, list[object]]:
     """An instance's name and parameters; numbers as floats, SET members in sorted order."""
-    from stepnc_graph.mapping.plan import plans_for
-    from stepnc_graph.naming import Naming
-    from stepnc_graph.schema.catalog import iso14649
+    from stepnc_graph.mapping.plan import iso14649_plans
 
-    catalog, model = iso14649()
-    plan = plans_for(model, Naming(catalog.namespace, catalog.ontology_base)).entities[inst.name]  # type: ignore[attr-defined]
+    plan = iso14649_plans().entities[inst.name]  # type: ignore[attr-defined]
     params = [_norm(v) for v in inst.params]  # type: ignore[attr-defined]
     for slot in plan.slots:
         if slot.repeated and isinstance(params[slot.index], list):

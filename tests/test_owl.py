@@ -10,7 +10,7 @@ from rdflib.compare import graph_diff, isomorphic, to_isomorphic
 
 from stepnc_graph.express import parse_file
 from stepnc_graph.generators.owl import OwlGenerator
-from stepnc_graph.naming import P21, STEPNC, Naming
+from stepnc_graph.naming import P21, STEPNC
 from stepnc_graph.schema import build_model
 from stepnc_graph.schema.catalog import Catalog
 from stepnc_graph.typemap import value_shape
@@ -104,7 +104,7 @@ SEED_SCHEMAS = ["turning_schema", "turning_machine_tool_schema", "turning_specif
 @pytest.mark.parametrize("schema", SEED_SCHEMAS)
 def test_every_seed_declaration_is_in_the_ontology(schema: str, shipped: Graph, iso_model) -> None:  # type: ignore[no-untyped-def]
     catalog, model = iso_model
-    n = Naming(catalog.namespace, catalog.ontology_base)
+    n = catalog.naming
     ontology = n.ontology(schema)
     assert (ontology, RDF.type, OWL.Ontology) in shipped
     for decl in model.in_schema(schema):

@@ -14,7 +14,6 @@ from stepnc_graph.generators.jsonld import JsonLdContextGenerator
 from stepnc_graph.generators.owl import OwlGenerator
 from stepnc_graph.generators.p21 import P21VocabularyGenerator
 from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
-from stepnc_graph.naming import Naming
 from stepnc_graph.schema.catalog import load_catalog_model
 
 
@@ -28,7 +27,7 @@ class BuildResult:
 def generate(express_directory: Path | None = None) -> dict[str, str]:
     """All generated files, keyed by path relative to the project root."""
     catalog, model = load_catalog_model(express_directory)
-    naming = Naming(catalog.namespace, catalog.ontology_base)
+    naming = catalog.naming
     out: dict[str, str] = {}
     for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
         out[f"ontology/{rel}"] = text

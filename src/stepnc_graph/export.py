@@ -7,9 +7,8 @@ import json
 import pyoxigraph as ox
 
 from stepnc_graph.generators.jsonld import context
-from stepnc_graph.mapping.plan import plans_for
+from stepnc_graph.mapping.plan import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
-from stepnc_graph.naming import Naming
 from stepnc_graph.resources import ontology_dir
 from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.store import GraphStore
@@ -22,11 +21,6 @@ QUAD_FORMATS = ("nq", "trig")
 
 class ExportError(ValueError):
     """An export that cannot be done as asked (unknown graph, p21 of several graphs, ...)."""
-
-
-def _naming() -> Naming:
-    catalog, _ = iso14649()
-    return Naming(catalog.namespace, catalog.ontology_base)
 
 
 def export(store: GraphStore, fmt: str, graph: str | None = None) -> bytes:
@@ -46,12 +40,11 @@ def export(store: GraphStore, fmt: str, graph: str | None = None) -> bytes:
                               f"--graph (see `stepnc-graph info`) or use nq/trig")
         graph = graphs[0]
     if fmt == "p21":
-        catalog, model = iso14649()
         assert graph is not None
-        return write_graph(plans_for(model, _naming()), store.quads(graph), graph).encode("utf-8")
+        return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
     if fmt == "jsonld":
         return _jsonld(store, graph)
-    prefixes = context(_naming())
+    prefixes = context(iso14649()[0].naming)
     return store.dump(_OX[fmt], None if fmt in QUAD_FORMATS and graph is None else graph, prefixes)
 
 

@@ -20,11 +20,10 @@ import pyoxigraph as ox
 from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
-from stepnc_graph.mapping.plan import plans_for
-from stepnc_graph.naming import P21_NS, TOOL_IRI, Naming, default_graph_iri, instance_prefix
+from stepnc_graph.mapping.plan import iso14649_plans
+from stepnc_graph.naming import P21_NS, TOOL_IRI, default_graph_iri, instance_prefix
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Header, Part21Reader
-from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.store import GraphStore
 
 DCT = "http://purl.org/dc/terms/"
@@ -103,7 +102,6 @@ class _Load:
 
     def __init__(self, path: Path, text: str, raw: bytes, lenient: bool, graph: str,
                  progress: Progress | None) -> None:
-        catalog, model = iso14649()
         self.path = path
         self.text = text
         self.raw = raw
@@ -111,11 +109,11 @@ class _Load:
         self.progress = progress
         self.reader = Part21Reader(text, str(path), lenient)
         prefix = instance_prefix(graph)
-        self.mapper = InstanceMapper(plans_for(model, Naming(catalog.namespace, catalog.ontology_base)),
+        self.mapper = InstanceMapper(iso14649_plans(),
                                      lambda i: f"{prefix}i{i}", {int(x) for x in _DEFINITION.findall(text)},
                                      str(path), text)
         self.result = LoadResult(str(path), graph)
-        self.known_schemas = {s.upper() for s in model.schemas} | SCHEMA_ALIASES
+        self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
 
     def chunks(self) -> Iterator[str]:

@@ -13,10 +13,8 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, field
 
-from stepnc_graph.mapping.plan import Encoding, Plans, plans_for
-from stepnc_graph.naming import Naming
+from stepnc_graph.mapping.plan import Encoding, Plans, iso14649_plans
 from stepnc_graph.part21.strings import encode
-from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.schema.model import Entity
 
 _TEXT = ["", "a", "it's", "back\\slash", "caf\u00e9", "\u4e2d\u6587", "emoji \U0001F600", "semi;colon",
@@ -156,8 +154,8 @@ def _bounds(label: str) -> tuple[int, int]:
 def random_program(seed: int, roots: int = 3, schemas: tuple[str, ...] = ("turning_schema",
                                                                           "turning_machine_tool_schema")) -> str:
     """A schema-valid Part 21 program; the same seed always gives the same text."""
-    catalog, model = iso14649()
-    plans = plans_for(model, Naming(catalog.namespace, catalog.ontology_base))
+    plans = iso14649_plans()
+    model = plans.model
     rng = random.Random(seed)
     prog = _Program(rng, plans)
     pool = sorted(e.name for s in schemas for e in model.in_schema(s)

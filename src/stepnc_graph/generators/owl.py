@@ -47,7 +47,7 @@ class OwlGenerator:
     def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None) -> None:
         self.model = model
         self.catalog = catalog
-        self.n = naming or Naming(catalog.namespace, catalog.ontology_base)
+        self.n = naming or catalog.naming
 
     # -- public -----------------------------------------------------------
 

@@ -80,6 +80,10 @@ class Plans:
         for e in model.entities.values():
             self.entities[e.name.upper()] = self._entity_plan(e)
         self.by_class = {p.cls: p for p in self.entities.values()}
+        # Reverse maps for the writer. Every enumeration and SELECT encoding is
+        # cached in _enc by now (plans of all entities were built above).
+        self.item_names = {iri: item for enc in self._enc.values() for item, iri in enc.items.items()}
+        self.typed_names = {cls: name for enc in self._enc.values() for name, (cls, _) in enc.typed.items()}
 
     # -- encodings ----------------------------------------------------------
 
@@ -163,3 +167,11 @@ P21_UNKNOWN = f"{P21_NS}logicalUnknown"
 @lru_cache(maxsize=4)
 def plans_for(model: SchemaModel, naming: Naming) -> Plans:
     return Plans(model, naming)
+
+
+def iso14649_plans() -> Plans:
+    """The plans of the shipped ISO 14649 model (built once per process)."""
+    from stepnc_graph.schema.catalog import iso14649
+
+    catalog, model = iso14649()
+    return plans_for(model, catalog.naming)

@@ -64,20 +64,8 @@ class Part21Writer:
 
     def __init__(self, plans: Plans) -> None:
         self.plans = plans
-        self.enum_items = {iri: item for p in plans._enc.values() for item, iri in p.items.items()}
-        for plan in plans.entities.values():
-            for slot in plan.slots:
-                self._collect_items(slot.encoding)
-        self.typed_names: dict[str, str] = {}
-        for enc in list(plans._enc.values()):
-            for name, (cls, _inner) in enc.typed.items():
-                self.typed_names[cls] = name
-
-    def _collect_items(self, enc: Encoding | None) -> None:
-        while enc is not None:
-            for item, iri in enc.items.items():
-                self.enum_items[iri] = item
-            enc = enc.element
+        self.enum_items = plans.item_names
+        self.typed_names = plans.typed_names
 
     # -- reading the graph ----------------------------------------------------------
 

@@ -6,12 +6,15 @@ import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stepnc_graph.express.parser import ParsedSchema, parse_file
 from stepnc_graph.resources import express_dir
 from stepnc_graph.schema.builder import build_model
 from stepnc_graph.schema.view import SchemaModel
+
+if TYPE_CHECKING:
+    from stepnc_graph.naming import Naming
 
 
 @dataclass(frozen=True)
@@ -24,6 +27,13 @@ class Catalog:
     namespace: str
     ontology_base: str
     ontology_version: str
+
+    @property
+    def naming(self) -> "Naming":
+        """IRI minting for this catalogue's namespace."""
+        from stepnc_graph.naming import Naming
+
+        return Naming(self.namespace, self.ontology_base)
 
 
 def read_catalog(directory: Path | None = None) -> Catalog:
