@@ -104,7 +104,8 @@ class _Program:
             return None if ref is None else f"#{ref}"
         if kind == "list":
             assert enc.element is not None
-            low, high = _bounds(enc.label)
+            low = enc.lower or 0
+            high = enc.upper if enc.upper is not None else low + 3
             count = rng.randint(low, max(low, min(high, low + 3)))
             items = [self.value(enc.element, depth + 1) for _ in range(count)]
             if any(i is None for i in items):
@@ -140,15 +141,6 @@ class _Program:
                 if ref is not None:
                     return f"#{ref}"
         return None
-
-
-def _bounds(label: str) -> tuple[int, int]:
-    """Bounds of the outermost aggregate in an EXPRESS type text, e.g. 'LIST [2:?] OF ...'."""
-    if "[" in label.split(" OF ")[0]:
-        inner = label[label.index("[") + 1:label.index("]")]
-        low, high = inner.split(":")
-        return int(low), (int(high) if high.strip() != "?" else int(low) + 3)
-    return 0, 3
 
 
 def random_program(seed: int, roots: int = 3, schemas: tuple[str, ...] = ("turning_schema",

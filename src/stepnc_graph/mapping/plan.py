@@ -7,6 +7,7 @@ reverse, which keeps load and export consistent by construction.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -44,6 +45,8 @@ class Encoding:
     accepts_refs: bool = False
     element: "Encoding | None" = None
     datatype: str | None = None
+    lower: int | None = 0  # bounds of a list (None: an expression bound); upper None is '?'
+    upper: int | None = None
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ class Plans:
             return self._simple(t.base)
         if isinstance(t, AggregateType):
             element = self.encoding(t.element)
-            return Encoding("list", str(t), element=element)
+            return Encoding("list", str(t), element=element, lower=t.lower, upper=t.upper)
         assert isinstance(t, GenericType)
         return Encoding("any", str(t))
 
@@ -117,8 +120,7 @@ class Plans:
             return self._select(name, select)
         assert isinstance(decl, DefinedType)
         inner = self.encoding(decl.underlying)
-        return Encoding(inner.kind, name, inner.items, inner.typed, inner.accepts_refs, inner.element,
-                        inner.datatype)
+        return dataclasses.replace(inner, label=name)
 
     def _select(self, name: str, select: SelectType) -> Encoding:
         items: dict[str, str] = {}
