@@ -245,7 +245,8 @@ class GraphStore:
         if not self._store.contains_named_graph(node):
             return False
         self._store.remove_graph(node)
-        self._store.flush() if self.path is not None else None
+        if self.path is not None:
+            self._store.flush()
         return True
 
     # -- reading ------------------------------------------------------------------------

@@ -25,7 +25,7 @@ class RemarkScan:
     unterminated: int | None
 
 
-def _skip_string(text: str, i: int) -> int:
+def skip_string(text: str, i: int) -> int:
     """Return the index after the string literal that starts at ``i``."""
     quote = text[i]
     j = i + 1
@@ -71,7 +71,7 @@ def scan_remarks(text: str) -> RemarkScan:
             spans.append((i, end))
             i = end
         elif text[i] in "'\"":
-            i = _skip_string(text, i)
+            i = skip_string(text, i)
         else:
             i += 1
     return RemarkScan(tuple(spans), None)

@@ -354,10 +354,11 @@ class Part21Reader:
                     continue
             p21_id = int(tok[1:]) if kind == "ref" else None
             try:
-                if kind != "ref":
-                    raise self._bad_token(kind, tok, start, ("#id", "ENDSEC")) if kind != "eof" else \
-                        _Failure("unexpected end of file in DATA section", start, ("ENDSEC",))
-                instance, pos = self._instance(p21_id, start, end)  # type: ignore[arg-type]
+                if kind == "eof":
+                    raise _Failure("unexpected end of file in DATA section", start, ("ENDSEC",))
+                if p21_id is None:
+                    raise self._bad_token(kind, tok, start, ("#id", "ENDSEC"))
+                instance, pos = self._instance(p21_id, start, end)
             except _Failure as failure:
                 if not self.lenient:
                     raise self._syntax_error(failure, p21_id) from None

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 import express_schema.parse as ast
 
-from stepnc_graph.express.comments import blank_comments
+from stepnc_graph.express.comments import blank_comments, skip_string
 from stepnc_graph.express.parser import ParsedSchema
 from stepnc_graph.schema.errors import SchemaError, SchemaErrors
 from stepnc_graph.schema.model import (
@@ -57,12 +57,7 @@ def _statement_text(clean: str, offset: int) -> str:
     """The text from ``offset`` to the next ``;`` outside strings, whitespace folded."""
     i, n = offset, len(clean)
     while i < n and clean[i] != ";":
-        if clean[i] in "'\"":
-            quote = clean[i]
-            i += 1
-            while i < n and clean[i] != quote:
-                i += 1
-        i += 1
+        i = skip_string(clean, i) if clean[i] in "'\"" else i + 1
     return " ".join(clean[offset:i].split())
 
 
