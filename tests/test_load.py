@@ -191,10 +191,15 @@ def test_header_and_schema_diagnostics(tmp_path: Path) -> None:
     assert {d.code for d in r.diagnostics} == {"P21-HEADER", "P21-UNKNOWN-SCHEMA"}
 
 
-def test_reference_to_a_dropped_instance_is_reported(tmp_path: Path) -> None:
+@pytest.mark.parametrize("memory", [False, True], ids=["disk", "memory"])
+def test_reference_to_a_dropped_instance_is_reported(tmp_path: Path, memory: bool) -> None:
     data = "#1=CONST_SPINDLE_SPEED(5.,,);\n#2=TURNING_TECHNOLOGY($,.TCP.,#1,.F.,.F.,.F.);"
-    [r] = sg.load(sg.open_store(memory=True), [program(tmp_path, data)], lenient=True)
+    store = sg.open_store(tmp_path / "store", memory=memory)
+    [r] = sg.load(store, [program(tmp_path, data)], lenient=True)
     assert [(d.code, d.p21_id) for d in r.diagnostics] == [("P21-SYNTAX", 1), ("P21-UNRESOLVED-REF", 2)]
+    # the graph's recorded count includes the reference check made after the data was written
+    [g] = sg.info(store)
+    assert g.diagnostics == 2 and g.triples == r.triples == store.count(r.graph)
 
 
 def test_every_code_is_tested() -> None:
@@ -289,6 +294,27 @@ def test_stable_iris_and_named_graph_metadata(tmp_path: Path) -> None:
     assert meta["schemaName"] in ("MACHINING_SCHEMA", "TURNING_SCHEMA")
     assert meta["headerText"].startswith("HEADER;") and meta["headerText"].endswith("ENDSEC;")
     assert {"generatedAtTime", "wasGeneratedBy", "source", "instanceCount"} <= set(meta)
+
+
+OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
+
+
+def test_its_id_aliases_for_plm_links(tmp_path: Path) -> None:
+    data = ("#1=PROPERTY_PARAMETER('x');\n"
+            "#2=WORKPLAN('MAIN / PLAN',(),$,$,$);\n"  # executable.its_id, unique: aliased
+            "#3=WORKPLAN('TWICE',(),$,$,$);\n#4=WORKPLAN('TWICE',(),$,$,$);\n"  # shared: no alias
+            "#5=WORKPLAN('',(),$,$,$);\n"  # empty: no alias
+            "#6=WORKPIECE('TWICE',$,$,$,$,$,());\n"  # other scope: its own alias
+            "#7=WORKPLAN('BROKEN',(),$,$);")  # raw (argument count): no alias
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [program(tmp_path, data)])
+    g = r.graph
+    aliases = {row["a"].value[len(g):]: row["i"].value[len(g):] for row in store.query(
+        f"SELECT ?a ?i WHERE {{ GRAPH <{g}> {{ ?a <{OWL_SAME_AS}> ?i }} }}")}
+    assert aliases == {"/id/executable/MAIN%20%2F%20PLAN": "/i2", "/id/workpiece/TWICE": "/i6"}
+    # the aliases are not instances: the file written back is the same program
+    assert_round_trip(store, g, tmp_path)
+    assert "sameAs" not in sg.export(store, "p21", g).decode()
 
 
 def test_reload_is_idempotent_and_unload(tmp_path: Path) -> None:

@@ -21,12 +21,13 @@ from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
 from stepnc_graph.mapping.plan import iso14649_plans
-from stepnc_graph.naming import P21_NS, TOOL_IRI, default_graph_iri, instance_prefix
+from stepnc_graph.naming import P21_NS, TOOL_IRI, alias_iri, default_graph_iri, instance_prefix
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Header, Part21Reader
 from stepnc_graph.store import GraphStore
 
 DCT = "http://purl.org/dc/terms/"
+OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
 PROV = "http://www.w3.org/ns/prov#"
 RDFS = "http://www.w3.org/2000/01/rdf-schema#"
 _DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
@@ -129,6 +130,7 @@ class _Load:
                 out.clear()
                 if self.progress:
                     self.progress(inst.end, total)
+        out.extend(self.aliases())
         result.triples += len(out)
         result.raw = self.mapper.raw_count
         result.defined = self.reader.defined
@@ -137,6 +139,12 @@ class _Load:
         yield "".join(out) + "".join(meta)
         if self.progress:
             self.progress(total, total)
+
+    def aliases(self) -> list[str]:
+        """``owl:sameAs`` links from alias IRIs to instances with an unshared its_id."""
+        g = self.graph
+        return [f"<{alias_iri(g, scope, label)}> {OWL_SAME_AS} <{target}> .\n"
+                for (scope, label), target in sorted(self.mapper.labels.items()) if target is not None]
 
     def metadata(self) -> list[str]:
         g = self.graph
@@ -153,7 +161,6 @@ class _Load:
             f"{s} <{P21_NS}sha256> {T.string(hashlib.sha256(self.raw).hexdigest())} .\n",
             f"{s} <{P21_NS}instanceCount> {T.integer(self.result.instances)} .\n",
             f"{s} <{P21_NS}rawInstanceCount> {T.integer(self.mapper.raw_count)} .\n",
-            f"{s} <{P21_NS}diagnosticCount> {T.integer(len(self.diagnostics()))} .\n",
             f"{s} <{PROV}generatedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
             f"{s} <{PROV}wasGeneratedBy> {activity} .\n",
             f"{activity} {T.RDF_TYPE} <{PROV}Activity> .\n",
@@ -215,7 +222,12 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
     extra: list[Diagnostic] = []
 
     def before_commit(where: str) -> None:
+        # The dangling-reference check needs the loaded graph, so the count of
+        # diagnostics is the last triple written, inside the same atomic load.
         extra.extend(job.dangling(store, where))
+        count = len(job.diagnostics()) + len(extra)
+        store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")
+        job.result.triples += 1
 
     store.replace_graph(job.graph, job.chunks(), before_commit)
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))

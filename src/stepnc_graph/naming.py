@@ -17,7 +17,12 @@ Scheme (documented in ``ontology/README.md``, stable for good):
 * a loaded file is one named graph; its IRI is the *base IRI* (by default
   ``.../data/<file name>``, or ``--base-iri``) and the instance ``#12`` of it is
   ``<base IRI>/i12`` (``<base IRI>i12`` when the base ends in ``/`` or ``#``):
-  the same file content and base IRI always give the same IRIs.
+  the same file content and base IRI always give the same IRIs;
+* an instance with an ``its_id`` label that no other instance of the same
+  scope shares also gets an alias ``<base IRI>/id/<scope>/<its_id>``
+  (percent-encoded; the scope is the entity declaring ``its_id``, such as
+  ``executable`` or ``manufacturing_feature``), ``owl:sameAs`` the instance:
+  a link for PLM systems that survives renumbering of the ``#id``\ s.
 """
 
 from __future__ import annotations
@@ -80,3 +85,8 @@ def instance_prefix(graph_iri: str) -> str:
 
 def instance_iri(graph_iri: str, p21_id: int) -> str:
     return f"{instance_prefix(graph_iri)}i{p21_id}"
+
+
+def alias_iri(graph_iri: str, scope: str, label: str) -> str:
+    """The alias of the one instance of ``scope`` whose its_id is ``label``."""
+    return f"{instance_prefix(graph_iri)}id/{scope.lower()}/{quote(label, safe='')}"

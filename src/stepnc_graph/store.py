@@ -240,6 +240,10 @@ class GraphStore:
         if replacing:
             self._store.update(f"DROP SILENT GRAPH <{graph}> ; MOVE SILENT GRAPH <{target}> TO <{graph}>")
 
+    def add_ntriples(self, graph: str, text: str) -> None:
+        """Add a few N-Triples to ``graph`` in one transaction (for use inside ``before_commit``)."""
+        self._store.load(text, ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
+
     def remove_graph(self, graph: str) -> bool:
         node = ox.NamedNode(graph)
         if not self._store.contains_named_graph(node):

@@ -80,6 +80,9 @@ class InstanceMapper:
         self.diagnostics: list[Diagnostic] = []
         self.raw_count = 0
         self._bnode = 0
+        #: (declaring entity, its_id) -> the one instance IRI with that label, or
+        #: None when several instances share it (then it identifies nothing).
+        self.labels: dict[tuple[str, str], str | None] = {}
 
     # -- values ----------------------------------------------------------------
 
@@ -198,12 +201,15 @@ class InstanceMapper:
         """Append the instance's triples to ``out`` (raw form if it does not fit)."""
         s = f"<{self.subject(inst.id)}>"
         lines: list[str] = []
+        labels: list[tuple[str, Any]] = []
         try:
             if inst.parts is None:
                 plan = self._plan(inst.name or "")
                 self._count(plan.name.upper(), plan.slots, inst.params)
                 lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
                 self._slots(s, plan.slots, inst.params, lines)
+                if plan.its_id is not None:
+                    labels.append((plan.slots[plan.its_id].entity, inst.params[plan.its_id]))
                 if plan.abstract:
                     self._diagnose(inst, "P21-ABSTRACT", f"{plan.name} is ABSTRACT: instances belong to a subtype")
             else:
@@ -212,13 +218,23 @@ class InstanceMapper:
                     self._count(name, plan.own_slots, params)
                     lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
                     self._slots(s, plan.own_slots, params, lines)
+                    if plan.own_its_id is not None:
+                        labels.append((plan.own_slots[plan.own_its_id].entity, params[plan.own_its_id]))
         except Mismatch as m:
             self._diagnose(inst, m.code, m.message)
             self._raw(inst, s, out)
             return
+        for scope, value in labels:
+            self._label(scope, value, s)
         out.extend(lines)
         out.append(f"{s} {P21_ID} {T.integer(inst.id)} .\n")
         out.append(f"{s} {P21_LINE} {T.integer(inst.line)} .\n")
+
+    def _label(self, scope: str, value: Any, s: str) -> None:
+        """Remember an instance's its_id (a non-empty string) for its alias IRI."""
+        if type(value) is str and value:
+            key = (scope, value)
+            self.labels[key] = None if key in self.labels else s[1:-1]
 
     def _raw(self, inst: Instance, s: str, out: list[str]) -> None:
         self.raw_count += 1

@@ -70,6 +70,11 @@ class EntityPlan:
     abstract: bool
     slots: tuple[Slot, ...]
     own_slots: tuple[Slot, ...]  # the entity's own explicit attributes (complex instances)
+    #: positions in ``slots`` / ``own_slots`` of a string attribute named ``its_id``
+    #: (the label ISO 14649-10 gives projects, workpieces, executables, features,
+    #: operations, ...), used to mint alias IRIs for PLM links; None without one.
+    its_id: int | None = None
+    own_its_id: int | None = None
 
 
 class Plans:
@@ -151,7 +156,19 @@ class Plans:
         slots = tuple(self._slot(s.index, s.attribute.entity, s.name, s.type, s.optional, s.derived)
                       for s in self.model.part21_attributes(e.name))
         own = tuple(self._slot(i, e.name, a.name, a.type, a.optional, False) for i, a in enumerate(e.explicit))
-        return EntityPlan(e.name, str(self.n.declaration(e.name)), e.abstract, slots, own)
+        return EntityPlan(e.name, str(self.n.declaration(e.name)), e.abstract, slots, own,
+                          _label_index(slots), _label_index(own))
+
+
+LABEL_ATTRIBUTE = "its_id"
+
+
+def _label_index(slots: tuple[Slot, ...]) -> int | None:
+    """The position of the ``its_id`` string attribute among ``slots``, if any."""
+    for position, slot in enumerate(slots):
+        if slot.name.lower() == LABEL_ATTRIBUTE and slot.encoding.kind == "string" and not slot.repeated:
+            return position
+    return None
 
 
 P21_ID = f"<{P21_NS}id>"
