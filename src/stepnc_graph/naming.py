@@ -22,7 +22,7 @@ Scheme (documented in ``ontology/README.md``, stable for good):
   scope shares also gets an alias ``<base IRI>/id/<scope>/<its_id>``
   (percent-encoded; the scope is the entity declaring ``its_id``, such as
   ``executable`` or ``manufacturing_feature``), ``owl:sameAs`` the instance:
-  a link for PLM systems that survives renumbering of the ``#id``\ s.
+  a link for PLM systems that survives renumbering of the instance ids.
 """
 
 from __future__ import annotations
