@@ -296,6 +296,40 @@ def test_stable_iris_and_named_graph_metadata(tmp_path: Path) -> None:
     assert {"generatedAtTime", "wasGeneratedBy", "source", "instanceCount"} <= set(meta)
 
 
+def test_edition3_structure_in_the_graph_and_back(tmp_path: Path) -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [P21 / "pass_edition3.stp"])
+    g = r.graph
+
+    def rows(variables: str, query: str) -> set[tuple[str, ...]]:
+        return {tuple(t.value.replace(g, "") for t in row) for row in store.query(
+            f"PREFIX p21: <{P21_NS}> SELECT {variables} WHERE {{ GRAPH <{g}> {{ {query} }} }}")}
+
+    assert rows("?i ?a", "?i p21:anchorName ?a") == {("/i3", "face_step"), ("/i5", "origin")}
+    assert rows("?i ?u", "?i p21:externalReference ?u") == {("/i900", "library.stp#spindle_800")}
+    assert rows("?i ?s ?n", "?i p21:dataSection ?s . ?s p21:sectionIndex ?n") == {
+        ("/i1", "/section1", "1"), ("/i2", "/section1", "1"), ("/i3", "/section1", "1"), ("/i4", "/section1", "1"),
+        ("/i5", "/section2", "2"), ("/i6", "/section2", "2")}
+    [(signature,)] = rows("?t", "?g p21:signatureText ?t")
+    assert signature.startswith("SIGNATURE")
+    text = sg.export(store, "p21", g).decode()
+    assert "SIGNATURE" not in text  # it signs the original bytes, which the export does not reproduce
+    assert text.index("ANCHOR;") < text.index("REFERENCE;") < text.index("DATA('process'") < text.index(
+        "#4=") < text.index("DATA('geometry'") < text.index("#5=")
+    # a one-section file records no sections
+    [r1] = sg.load(store, [EXAMPLE])
+    assert not bool(store.query(f"ASK {{ GRAPH <{r1.graph}> {{ ?i <{P21_NS}dataSection> ?s }} }}"))
+
+
+def test_edition3_value_names_keep_the_instance_raw(tmp_path: Path) -> None:
+    data = "#1=CONST_SPINDLE_SPEED(@7);\n#2=CONST_SPINDLE_SPEED(800.);"
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [program(tmp_path, data)])
+    [d] = r.diagnostics
+    assert (d.code, d.p21_id) == ("P21-VALUE-TYPE", 1) and "@7" in d.message and "outside the file" in d.message
+    assert r.raw == 1 and "#1=CONST_SPINDLE_SPEED(@7);" in sg.export(store, "p21", r.graph).decode()
+
+
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
 
 

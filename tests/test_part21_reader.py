@@ -10,7 +10,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from stepnc_graph.part21 import DERIVED, UNSET, Binary, Enum, Part21SyntaxError, Ref, Typed, read_file, read_text
+from stepnc_graph.part21 import (
+    DERIVED,
+    UNSET,
+    Binary,
+    Enum,
+    Name,
+    Part21SyntaxError,
+    Ref,
+    Typed,
+    read_file,
+    read_text,
+)
 from stepnc_graph.part21.strings import StringDecodeError, decode, encode
 
 from conftest import FIXTURES
@@ -56,6 +67,41 @@ def test_header_multiple_schemas_and_data_sections() -> None:
     assert r.header.schemas == ["MACHINING_SCHEMA", "MILLING_SCHEMA"]
     assert r.header.entities["MY_HEADER_EXT"] == [1]
     assert r.header.data_sections == [["one", ["MACHINING_SCHEMA"]], ["two", ["MILLING_SCHEMA"]]]
+
+
+def test_edition3_sections() -> None:
+    r = read_file(P21 / "pass_edition3.stp")
+    found = [(i.id, i.section) for i in r.instances()]
+    h = r.header
+    assert found == [(1, 0), (2, 0), (3, 0), (4, 0), (5, 1), (6, 1)]
+    assert h.data_section_texts == ["DATA('process',('MACHINING_SCHEMA','TURNING_SCHEMA'));",
+                                    "DATA('geometry',('MACHINING_SCHEMA'));"]
+    assert h.anchors == [("face_step", 3), ("origin", 5)]  # <feed>=0.25 names a value, not an instance
+    assert h.anchor_text.startswith("ANCHOR;") and h.anchor_text.endswith("ENDSEC;") and "{units:'mm'}" in h.anchor_text
+    assert h.references == [("#900", "library.stp#spindle_800"), ("@901", "library.stp#stock")]
+    assert h.reference_text.startswith("REFERENCE;") and "/* a spindle speed" in h.reference_text
+    assert len(h.signatures) == 1 and h.signatures[0].startswith("SIGNATURE") and h.signatures[0].endswith(";")
+    assert r.diagnostics == []
+
+
+def test_edition3_names_as_values() -> None:
+    [inst], _ = instances("#1=E(@12,#ORIGIN,@PI,(#2,@3));")
+    assert inst.params == [Name("@12"), Name("#ORIGIN"), Name("@PI"), [Ref(2), Name("@3")]]
+    assert all(type(v) is Name for v in inst.params[:3])
+
+
+@pytest.mark.parametrize("section, line, column, expected", [
+    ("ANCHOR;\n<a>=#1\nENDSEC;", 7, 1, "';'"),               # missing ';' after an anchor
+    ("ANCHOR;\na=#1;\nENDSEC;", 6, 1, "anchor name"),         # a name without <>
+    ("REFERENCE;\n#5=#6;\nENDSEC;", 6, 4, "<uri>"),           # not a resource
+    ("REFERENCE;\n#A=<x.stp#a>;\nENDSEC;", 6, 1, "#id, @id"),  # a constant cannot be defined outside
+])
+def test_edition3_section_errors_are_positioned(section: str, line: int, column: int, expected: str) -> None:
+    text = wrap("#1=E();").replace("DATA;", section + "\nDATA;")
+    for lenient in (False, True):  # section structure is not repaired: it would change what links resolve to
+        with pytest.raises(Part21SyntaxError) as err:
+            read_text(text, "t.stp", lenient)
+        assert (err.value.lineno, err.value.offset) == (line, column) and expected in err.value.msg
 
 
 def test_positions_survive_any_line_endings() -> None:

@@ -21,7 +21,7 @@ from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
 from stepnc_graph.mapping.plan import iso14649_plans
-from stepnc_graph.naming import P21_NS, TOOL_IRI, alias_iri, default_graph_iri, instance_prefix
+from stepnc_graph.naming import P21_NS, TOOL_IRI, alias_iri, default_graph_iri, instance_prefix, section_iri
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Header, Part21Reader
 from stepnc_graph.store import GraphStore
@@ -31,6 +31,7 @@ OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
 PROV = "http://www.w3.org/ns/prov#"
 RDFS = "http://www.w3.org/2000/01/rdf-schema#"
 _DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
+_DATA_OPENER = re.compile(r"(?m)^[ \t]*DATA[ \t\r\n]*[(;]")
 #: FILE_SCHEMA names accepted besides the model's own schema names: NIST's
 #: merged schema, which holds exactly the schemas stepnc-graph ships.
 SCHEMA_ALIASES = {"COMBINED_SCHEMA"}
@@ -110,9 +111,10 @@ class _Load:
         self.progress = progress
         self.reader = Part21Reader(text, str(path), lenient)
         prefix = instance_prefix(graph)
+        several = len(_DATA_OPENER.findall(text)) > 1  # edition 3: instances record their section
         self.mapper = InstanceMapper(iso14649_plans(),
                                      lambda i: f"{prefix}i{i}", {int(x) for x in _DEFINITION.findall(text)},
-                                     str(path), text)
+                                     str(path), text, (lambda i: section_iri(graph, i + 1)) if several else None)
         self.result = LoadResult(str(path), graph)
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
@@ -170,7 +172,26 @@ class _Load:
             f"{tool} {T.RDF_TYPE} <{PROV}SoftwareAgent> .\n",
             f"{tool} <{RDFS}label> {T.string('stepnc-graph ' + __version__)} .\n",
         ]
-        return out + _header_triples(g, self.reader.header)
+        return out + _header_triples(g, self.reader.header) + self.edition3()
+
+    def edition3(self) -> list[str]:
+        """ANCHOR, REFERENCE, DATA section and SIGNATURE triples (ISO 10303-21:2016, 9-11, 13)."""
+        h = self.reader.header
+        g, subject = f"<{self.graph}>", self.mapper.subject
+        out = [f"{g} <{P21_NS}anchorSectionText> {T.string(h.anchor_text)} .\n"] if h.anchor_text else []
+        out += [f"<{subject(i)}> <{P21_NS}anchorName> {T.string(name)} .\n" for name, i in h.anchors]
+        if h.reference_text:
+            out.append(f"{g} <{P21_NS}referenceSectionText> {T.string(h.reference_text)} .\n")
+        out += [f"<{subject(int(name[1:]))}> <{P21_NS}externalReference> {T.typed(uri, T.XSD + 'anyURI')} .\n"
+                for name, uri in h.references if name.startswith("#")]
+        out += [f"{g} <{P21_NS}signatureText> {T.string(text)} .\n" for text in h.signatures]
+        if self.mapper.section is not None:
+            for i, text in enumerate(h.data_section_texts):
+                sec = f"<{self.mapper.section(i)}>"
+                out += [f"{sec} {T.RDF_TYPE} <{P21_NS}DataSection> .\n",
+                        f"{sec} <{P21_NS}sectionIndex> {T.integer(i + 1)} .\n",
+                        f"{sec} <{P21_NS}sectionText> {T.string(text)} .\n"]
+        return out
 
     def schema_diagnostics(self) -> list[Diagnostic]:
         unknown = [s for s in self.reader.header.schemas if s not in self.known_schemas]

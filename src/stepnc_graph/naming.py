@@ -87,6 +87,11 @@ def instance_iri(graph_iri: str, p21_id: int) -> str:
     return f"{instance_prefix(graph_iri)}i{p21_id}"
 
 
+def section_iri(graph_iri: str, index: int) -> str:
+    """The ``index``-th (1-based) DATA section of a file that has several."""
+    return f"{instance_prefix(graph_iri)}section{index}"
+
+
 def alias_iri(graph_iri: str, scope: str, label: str) -> str:
     """The alias of the one instance of ``scope`` whose its_id is ``label``."""
     return f"{instance_prefix(graph_iri)}id/{scope.lower()}/{quote(label, safe='')}"

@@ -63,6 +63,16 @@ TERMS: tuple[Term, ...] = (
     Term("instanceCount", "data", "Instances loaded from the file (mapped and raw)."),
     Term("rawInstanceCount", "data", "Instances kept raw because they do not fit the schema."),
     Term("diagnosticCount", "data", "Diagnostics the load reported."),
+    # edition 3 (ISO 10303-21:2016) structure
+    Term("anchorName", "data", "A name the file's ANCHOR section gives the instance, for links from other files."),
+    Term("externalReference", "data", "The resource the file's REFERENCE section says defines this instance outside the file."),
+    Term("anchorSectionText", "data", "The ANCHOR section of the file, verbatim, so the writer can restore it."),
+    Term("referenceSectionText", "data", "The REFERENCE section of the file, verbatim, so the writer can restore it."),
+    Term("signatureText", "data", "A SIGNATURE section of the file, verbatim (it signs the original bytes, so the writer does not repeat it)."),
+    Term("DataSection", "class", "One DATA section of a file that has several."),
+    Term("dataSection", "object", "The DATA section that holds the instance (only in files with several)."),
+    Term("sectionIndex", "data", "1-based place of a DATA section in its file."),
+    Term("sectionText", "data", "The opening of a DATA section verbatim, e.g. DATA('a',('TURNING_SCHEMA'));."),
     Term("unset", "individual", "An unset ($) member of an ARRAY with OPTIONAL elements."),
     Term("logicalUnknown", "datatype", "Datatype of the LOGICAL value UNKNOWN, the only member of its value space: \"UNKNOWN\"^^p21:logicalUnknown."),
 )

@@ -1319,14 +1319,18 @@ class P21(DefinedNamespace):
     _fail = True
     _NS = Namespace("https://w3id.org/stepnc-graph/p21#")
 
+    DataSection: URIRef
     ExchangeStructure: URIRef
     RawInstance: URIRef
     TypedValue: URIRef
     abstract: URIRef
     aggregate: URIRef
+    anchorName: URIRef
+    anchorSectionText: URIRef
     attributeKind: URIRef
     authorization: URIRef
     byteSize: URIRef
+    dataSection: URIRef
     declaredBy: URIRef
     derivation: URIRef
     derivedValue: URIRef
@@ -1337,6 +1341,7 @@ class P21(DefinedNamespace):
     expressKind: URIRef
     expressName: URIRef
     expressType: URIRef
+    externalReference: URIRef
     headerText: URIRef
     id: URIRef
     implementationLevel: URIRef
@@ -1353,9 +1358,13 @@ class P21(DefinedNamespace):
     rawInstanceCount: URIRef
     rawText: URIRef
     redeclaration: URIRef
+    referenceSectionText: URIRef
     schema: URIRef
     schemaName: URIRef
+    sectionIndex: URIRef
+    sectionText: URIRef
     sha256: URIRef
+    signatureText: URIRef
     supertypeExpression: URIRef
     underlyingDatatype: URIRef
     underlyingType: URIRef

@@ -23,6 +23,7 @@ from stepnc_graph.mapping.plan import (
     P21_LINE,
     P21_RAW,
     P21_RAW_TEXT,
+    P21_SECTION,
     P21_UNKNOWN,
     P21_UNSET,
     P21_VALUE,
@@ -33,7 +34,7 @@ from stepnc_graph.mapping.plan import (
 )
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Instance
-from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Ref, Typed
+from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
 
 class Mismatch(Exception):
@@ -67,12 +68,15 @@ class InstanceMapper:
     """Turns instances of one file into N-Triples lines for one named graph.
 
     ``defined`` is the set of instance ids the file defines (for unresolved
-    references); ``subject`` mints an instance's IRI from its id.
+    references); ``subject`` mints an instance's IRI from its id; ``section``,
+    given for a file with several DATA sections, mints the IRI of a section
+    from its 0-based index (each instance then records its section).
     """
 
     def __init__(self, plans: Plans, subject: Callable[[int], str], defined: set[int], filename: str,
-                 source: str) -> None:
+                 source: str, section: Callable[[int], str] | None = None) -> None:
         self.plans = plans
+        self.section = section
         self.subject = subject
         self.defined = defined
         self.filename = filename
@@ -130,7 +134,14 @@ class InstanceMapper:
                 return T.typed(value[1:].upper(), enc.datatype or "")
         elif kind == "any":
             raise Mismatch("P21-VALUE-TYPE", "generic types cannot be stored")
-        raise Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {describe(value)}")
+        raise self._mismatch(enc, value)
+
+    @staticmethod
+    def _mismatch(enc: Encoding, value: Any) -> Mismatch:
+        if type(value) is Name:
+            return Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {value}, a value defined outside the "
+                                              "file or a schema constant (edition 3), which cannot be typed here")
+        return Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {describe(value)}")
 
     def _list(self, element: Encoding, values: list[Any], out: list[str]) -> str:
         if not values:
@@ -157,7 +168,7 @@ class InstanceMapper:
             out.append(f"{node} {T.RDF_TYPE} <{cls}> .\n")
             out.append(f"{node} {P21_VALUE} {self.encode(inner, value.value, out)} .\n")
             return node
-        raise Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {describe(value)}")
+        raise self._mismatch(enc, value)
 
     # -- instances ---------------------------------------------------------------
 
@@ -227,8 +238,14 @@ class InstanceMapper:
         for scope, value in labels:
             self._label(scope, value, s)
         out.extend(lines)
+        self._source(inst, s, out)
+
+    def _source(self, inst: Instance, s: str, out: list[str]) -> None:
+        """Where the instance is in its file: #id, line, and (several DATA sections) its section."""
         out.append(f"{s} {P21_ID} {T.integer(inst.id)} .\n")
         out.append(f"{s} {P21_LINE} {T.integer(inst.line)} .\n")
+        if self.section is not None:
+            out.append(f"{s} {P21_SECTION} <{self.section(inst.section)}> .\n")
 
     def _label(self, scope: str, value: Any, s: str) -> None:
         """Remember an instance's its_id (a non-empty string) for its alias IRI."""
@@ -242,8 +259,7 @@ class InstanceMapper:
         out.append(f"{s} {T.RDF_TYPE} {P21_RAW} .\n")
         out.append(f"{s} {P21_ENTITY_NAME} {T.string(names)} .\n")
         out.append(f"{s} {P21_RAW_TEXT} {T.string(self.source[inst.start:inst.end])} .\n")
-        out.append(f"{s} {P21_ID} {T.integer(inst.id)} .\n")
-        out.append(f"{s} {P21_LINE} {T.integer(inst.line)} .\n")
+        self._source(inst, s, out)
 
     def _diagnose(self, inst: Instance, code: str, message: str) -> None:
         self.diagnostics.append(Diagnostic.make(code, self.filename, inst.line, inst.column, inst.id, message))

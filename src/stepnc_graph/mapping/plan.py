@@ -173,6 +173,7 @@ def _label_index(slots: tuple[Slot, ...]) -> int | None:
 
 P21_ID = f"<{P21_NS}id>"
 P21_LINE = f"<{P21_NS}line>"
+P21_SECTION = f"<{P21_NS}dataSection>"
 P21_DERIVED = f"<{P21_NS}derivedValue>"
 P21_EMPTY = f"<{P21_NS}emptyAggregate>"
 P21_VALUE = f"<{P21_NS}value>"

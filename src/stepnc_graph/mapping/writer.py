@@ -23,6 +23,7 @@ from stepnc_graph.mapping.plan import (
     P21_ID,
     P21_RAW,
     P21_RAW_TEXT,
+    P21_SECTION,
     P21_UNKNOWN,
     P21_UNSET,
     P21_VALUE,
@@ -74,16 +75,36 @@ class Part21Writer:
         for q in quads:
             props[_key(q.subject)][f"<{q.predicate.value}>"].append(q.object)
         self.props = props
-        header_text = None
-        if graph is not None and f"<{graph}>" in props:
-            texts = props[f"<{graph}>"].get(f"<{P21_NS}headerText>")
-            header_text = texts[0].value if texts else None
+        meta: dict[str, list[Any]] = props.get(f"<{graph}>", {}) if graph is not None else {}
+
+        def text(term: str) -> str | None:
+            values = meta.get(f"<{P21_NS}{term}>")
+            return str(values[0].value) if values else None
+
         instances = self._instances(props)
         self.ids = {key: i for i, key in instances}
-        body = [self._instance(i, key) for i, key in instances]
         schemas = self._schemas(props, graph)
-        header = header_text or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
-        return "ISO-10303-21;\n" + header + "\nDATA;\n" + "\n".join(body) + "\nENDSEC;\nEND-ISO-10303-21;\n"
+        header = text("headerText") or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
+        # edition 3: ANCHOR and REFERENCE sections verbatim (ids are kept, so they still hold)
+        extra = "".join(f"{t}\n" for t in (text("anchorSectionText"), text("referenceSectionText")) if t)
+        body = "".join(f"{opener}\n" + "\n".join(self._instance(i, key) for i, key in members) + "\nENDSEC;\n"
+                       for opener, members in self._sections(instances))
+        return "ISO-10303-21;\n" + header + "\n" + extra + body + "END-ISO-10303-21;\n"
+
+    def _sections(self, instances: list[tuple[int, str]]) -> list[tuple[str, list[tuple[int, str]]]]:
+        """DATA sections in file order with their instances; one ``DATA;`` unless the graph
+        records several (instances without a section go to the first)."""
+        section_of = {key: _key(v[0]) for _, key in instances if (v := self.props[key].get(P21_SECTION))}
+        if not section_of:
+            return [("DATA;", instances)]
+        index = f"<{P21_NS}sectionIndex>"
+        order = sorted(set(section_of.values()), key=lambda s: int(self.props[s][index][0].value)
+                       if self.props.get(s, {}).get(index) else 0)
+        members: dict[str, list[tuple[int, str]]] = {s: [] for s in order}
+        for i, key in instances:
+            members[section_of.get(key, order[0])].append((i, key))
+        return [(str(self.props[s][f"<{P21_NS}sectionText>"][0].value)
+                 if self.props.get(s, {}).get(f"<{P21_NS}sectionText>") else "DATA;", members[s]) for s in order]
 
     def _schemas(self, props: dict[str, Any], graph: str | None) -> list[str]:
         if graph is not None and f"<{graph}>" in props:

@@ -1,5 +1,11 @@
 """Read ISO 10303-21 exchange structures (editions 2 and 3).
 
+Edition 3 (ISO 10303-21:2016) adds, and this reader keeps: an ANCHOR section
+(names other files can link to, clause 9), a REFERENCE section (instances and
+values defined outside the file, clause 10), several DATA sections with
+parameters (clause 11), SIGNATURE sections after the end (clause 13), and the
+names ``@12``, ``#CONSTANT``, ``@CONSTANT`` as parameter values (:class:`Name`).
+
 One compiled regular expression tokenizes; a small hand-written parser turns
 tokens into :class:`Instance` objects, **one at a time** (``instances()`` is a
 generator), so a million-instance file never has its token list or all its
@@ -22,12 +28,15 @@ from typing import Any
 
 from stepnc_graph.part21.diagnostics import Diagnostic, Part21SyntaxError
 from stepnc_graph.part21.strings import StringDecodeError, decode
-from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Ref, Typed
+from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
 TOKEN = re.compile(
     r"""
     (?P<ws>[ \t\r\n\f\v]+|/\*.*?\*/)
   | (?P<ref>\#[0-9]+)
+  | (?P<name>[\#@][A-Za-z_][A-Za-z0-9_]*|@[0-9]+)
+  | (?P<uri><[^<>\s]*>)
+  | (?P<tag>[{}:])
   | (?P<str>'[^']*(?:''[^']*)*')
   | (?P<real>[+-]?[0-9]+\.[0-9]*(?:[Ee][+-]?[0-9]+)?)
   | (?P<int>[+-]?[0-9]+)
@@ -41,6 +50,7 @@ TOKEN = re.compile(
 )
 _MAGIC = re.compile(r"(?:[ \t\r\n\f\v]+|/\*.*?\*/)*ISO-10303-21[ \t\r\n]*;", re.S)
 _END = re.compile(r"END-ISO-10303-21[ \t\r\n]*;", re.S)
+_SIGNATURE = re.compile(r"[ \t\r\n]*(SIGNATURE\b.*?\bENDSEC[ \t\r\n]*;)", re.S)
 _NEXT_STATEMENT = re.compile(r"(?m)^[ \t]*(?=#[0-9]+[ \t]*=)|\bENDSEC\b")
 _INSTANCE_START = re.compile(r"#[0-9]+[ \t\r\n]*=")
 _CURLY = "\u2019"
@@ -64,6 +74,7 @@ class Instance:
     start: int
     end: int
     parts: list[tuple[str, list[Any]]] | None = None
+    section: int = 0  # which DATA section (0-based) holds the instance
 
     @property
     def names(self) -> list[str]:
@@ -77,6 +88,15 @@ class Header:
     entities: dict[str, list[Any]] = field(default_factory=dict)
     data_sections: list[list[Any]] = field(default_factory=list)
     text: str = ""  # the section verbatim, from HEADER to ENDSEC;
+    #: edition 3: the DATA section openers verbatim (``DATA;``, ``DATA('a',('S'));``)
+    data_section_texts: list[str] = field(default_factory=list)
+    #: edition 3: anchors (name without <>, instance id) that name an instance
+    anchors: list[tuple[str, int]] = field(default_factory=list)
+    anchor_text: str = ""  # the ANCHOR section verbatim ("" when absent)
+    #: edition 3: REFERENCE entries (``#12`` or ``@12``, URI without <>)
+    references: list[tuple[str, str]] = field(default_factory=list)
+    reference_text: str = ""  # the REFERENCE section verbatim
+    signatures: list[str] = field(default_factory=list)  # SIGNATURE sections verbatim
 
     @property
     def schemas(self) -> list[str]:
@@ -115,6 +135,10 @@ class Part21Reader:
         self._line_start = 0
         self._cursor = 0  # offset up to which _line/_line_start are exact
         self._pos = self._read_header()
+        try:
+            self._pos = self._read_reference_sections(self._pos)
+        except _Failure as failure:
+            raise self._syntax_error(failure, None) from None
 
     # -- positions ------------------------------------------------------------
 
@@ -238,6 +262,8 @@ class Part21Reader:
                     current.append(Enum(tok.upper()))
                 elif kind == "bin":
                     current.append(Binary(tok[1:-1]))
+                elif kind == "name":
+                    current.append(Name(tok))
                 else:
                     raise self._bad_token(kind, tok, start, ("value",))
                 expect_value = False
@@ -308,6 +334,65 @@ class Part21Reader:
                 self._diagnose("P21-HEADER", pos, None, f"HEADER has no {required}")
         return pos
 
+    def _read_reference_sections(self, pos: int) -> int:
+        """The optional edition-3 ANCHOR and REFERENCE sections, in that order."""
+        kind, tok, start, end = self._token(pos)
+        if kind == "kw" and tok.upper() == "ANCHOR":
+            pos = self._anchor_section(self._expect(end, ";"))
+            self.header.anchor_text = self.text[start:pos]
+            kind, tok, start, end = self._token(pos)
+        if kind == "kw" and tok.upper() == "REFERENCE":
+            pos = self._reference_section(self._expect(end, ";"))
+            self.header.reference_text = self.text[start:pos]
+        return pos
+
+    def _anchor_section(self, pos: int) -> int:
+        """``<name> = item {tags} ;`` entries up to ``ENDSEC;`` (ISO 10303-21:2016, 9)."""
+        while True:
+            kind, tok, start, end = self._token(pos)
+            if kind == "kw" and tok.upper() == "ENDSEC":
+                return self._expect(end, ";")
+            if kind != "uri":
+                raise _Failure(f"expected an anchor name <...> or ENDSEC, found {tok!r}", start, ("<name>", "ENDSEC"))
+            item, pos = self._anchor_item(self._expect(end, "="))
+            if isinstance(item, Ref):
+                self.header.anchors.append((tok[1:-1], int(item)))
+            while True:  # anchor tags: { name : item }
+                tkind, ttok, tstart, tend = self._token(pos)
+                if ttok != "{":
+                    break
+                nkind, ntok, nstart, nend = self._token(tend)
+                if nkind != "kw":
+                    raise _Failure(f"expected a tag name, found {ntok!r}", nstart, ("tag name",))
+                _, pos = self._anchor_item(self._expect(nend, ":"))
+                pos = self._expect(pos, "}")
+            pos = self._expect(pos, ";")
+
+    def _anchor_item(self, pos: int) -> tuple[Any, int]:
+        """One anchor item: a list, an instance or value name, a resource or a simple value."""
+        kind, tok, start, end = self._token(pos)
+        if tok == "(":
+            return self._params(pos, None)
+        if kind == "ref":
+            return Ref(tok[1:]), end
+        if kind in ("name", "uri", "int", "real", "str", "enum", "bin") or tok == "$":
+            return Name(tok), end
+        raise _Failure(f"expected an anchor item, found {tok!r}", start, ("#id", "value", "<resource>"))
+
+    def _reference_section(self, pos: int) -> int:
+        """``#12 = <uri>;`` / ``@12 = <uri>;`` entries up to ``ENDSEC;`` (ISO 10303-21:2016, 10)."""
+        while True:
+            kind, tok, start, end = self._token(pos)
+            if kind == "kw" and tok.upper() == "ENDSEC":
+                return self._expect(end, ";")
+            if kind not in ("ref", "name") or tok[1:2].isalpha():
+                raise _Failure(f"expected #id, @id or ENDSEC, found {tok!r}", start, ("#id", "@id", "ENDSEC"))
+            ukind, utok, ustart, uend = self._token(self._expect(end, "="))
+            if ukind != "uri":
+                raise _Failure(f"expected a resource <uri>, found {utok!r}", ustart, ("<uri>",))
+            self.header.references.append((tok, utok[1:-1]))
+            pos = self._expect(uend, ";")
+
     def _section_start(self, pos: int) -> int | None:
         """After ``DATA;``/``DATA(...);`` return the offset; at the end marker return None."""
         kind, tok, start, end = self._token(pos)
@@ -318,8 +403,15 @@ class Part21Reader:
                 self.header.data_sections.append(params)
             else:
                 self.header.data_sections.append([])
-            return self._expect(end, ";")
+            end = self._expect(end, ";")
+            self.header.data_section_texts.append(self.text[start:end])
+            return end
         m = _END.match(self.text, start)
+        if m is not None:
+            after = m.end()
+            while (sig := _SIGNATURE.match(self.text, after)) is not None:
+                self.header.signatures.append(sig.group(1))
+                after = sig.end()
         if m is None:
             raise _Failure(f"expected DATA or END-ISO-10303-21, found {tok!r}" if tok else
                            "expected DATA or END-ISO-10303-21, found end of file", start,
@@ -336,9 +428,9 @@ class Part21Reader:
                 raise self._syntax_error(failure, None) from None
             if section is None:
                 return
-            pos = yield from self._data_section(section)
+            pos = yield from self._data_section(section, len(self.header.data_sections) - 1)
 
-    def _data_section(self, pos: int) -> Generator[Instance, None, int]:
+    def _data_section(self, pos: int, index: int) -> Generator[Instance, None, int]:
         while True:
             kind, tok, start, end = self._token(pos)
             if kind == "kw" and tok.upper() == "ENDSEC":
@@ -372,6 +464,7 @@ class Part21Reader:
                 self._diagnose("P21-DUPLICATE-ID", start, instance.id, message)
                 continue
             self._ids.add(instance.id)
+            instance.section = index
             yield instance
 
     def _instance(self, p21_id: int, start: int, pos: int) -> tuple[Instance, int]:

@@ -53,6 +53,17 @@ class Typed:
         return f"{self.name}({self.value!r})"
 
 
+class Name(str):
+    """An edition-3 name that is not a plain instance reference (ISO 10303-21:2016, 12.1):
+    a value instance ``@12`` (defined in the REFERENCE section, outside the file) or a
+    constant ``#ORIGIN`` / ``@PI`` of the schema. Kept as written; its type is unknown here."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
 class _Marker:
     __slots__ = ("text",)
 
@@ -69,4 +80,4 @@ UNSET = _Marker("$")
 DERIVED = _Marker("*")
 """A value a subtype derives, written ``*``."""
 
-Value = Union[int, float, str, Ref, Enum, Binary, Typed, _Marker, list]  # type: ignore[type-arg]
+Value = Union[int, float, str, Ref, Enum, Binary, Typed, Name, _Marker, list]  # type: ignore[type-arg]
