@@ -119,6 +119,13 @@ class _Load:
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
 
+    @classmethod
+    def of_file(cls, path: str | Path, lenient: bool, base_iri: str | None, progress: Progress | None) -> "_Load":
+        """The load of ``path`` into graph ``base_iri`` (default: from the file name)."""
+        p = Path(path)
+        raw = p.read_bytes()
+        return cls(p, decode_bytes(raw), raw, lenient, base_iri or default_graph_iri(str(p)), progress)
+
     def chunks(self) -> Iterator[str]:
         out: list[str] = []
         result = self.result
@@ -235,9 +242,7 @@ def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | 
     Everything but the store-dependent last step (the reference check and the
     diagnostic count); the benchmark uses it to time the store on its own.
     """
-    p = Path(path)
-    raw = p.read_bytes()
-    yield from _Load(p, decode_bytes(raw), raw, lenient, base_iri or default_graph_iri(str(p)), None).chunks()
+    yield from _Load.of_file(path, lenient, base_iri, None).chunks()
 
 
 def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
@@ -248,9 +253,7 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
     the file does not parse; the store is then unchanged. Loading the same file
     again replaces its graph.
     """
-    p = Path(path)
-    raw = p.read_bytes()
-    job = _Load(p, decode_bytes(raw), raw, lenient, base_iri or default_graph_iri(str(p)), progress)
+    job = _Load.of_file(path, lenient, base_iri, progress)
     extra: list[Diagnostic] = []
 
     def before_commit(where: str) -> None:

@@ -75,11 +75,10 @@ class Part21Writer:
         for q in quads:
             props[_key(q.subject)][f"<{q.predicate.value}>"].append(q.object)
         self.props = props
-        meta: dict[str, list[Any]] = props.get(f"<{graph}>", {}) if graph is not None else {}
+        meta = f"<{graph}>"
 
         def text(term: str) -> str | None:
-            values = meta.get(f"<{P21_NS}{term}>")
-            return str(values[0].value) if values else None
+            return self._first(meta, term) if graph is not None else None
 
         instances = self._instances(props)
         self.ids = {key: i for i, key in instances}
@@ -97,14 +96,16 @@ class Part21Writer:
         section_of = {key: _key(v[0]) for _, key in instances if (v := self.props[key].get(P21_SECTION))}
         if not section_of:
             return [("DATA;", instances)]
-        index = f"<{P21_NS}sectionIndex>"
-        order = sorted(set(section_of.values()), key=lambda s: int(self.props[s][index][0].value)
-                       if self.props.get(s, {}).get(index) else 0)
+        order = sorted(set(section_of.values()), key=lambda s: int(self._first(s, "sectionIndex") or 0))
         members: dict[str, list[tuple[int, str]]] = {s: [] for s in order}
         for i, key in instances:
             members[section_of.get(key, order[0])].append((i, key))
-        return [(str(self.props[s][f"<{P21_NS}sectionText>"][0].value)
-                 if self.props.get(s, {}).get(f"<{P21_NS}sectionText>") else "DATA;", members[s]) for s in order]
+        return [(self._first(s, "sectionText") or "DATA;", members[s]) for s in order]
+
+    def _first(self, key: str, term: str) -> str | None:
+        """The value of the node's first ``p21:<term>`` triple, if it has one."""
+        values = self.props.get(key, {}).get(f"<{P21_NS}{term}>")
+        return str(values[0].value) if values else None
 
     def _schemas(self, props: dict[str, Any], graph: str | None) -> list[str]:
         if graph is not None and f"<{graph}>" in props:
