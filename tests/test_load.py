@@ -321,6 +321,20 @@ def test_edition3_structure_in_the_graph_and_back(tmp_path: Path) -> None:
     assert not bool(store.query(f"ASK {{ GRAPH <{r1.graph}> {{ ?i <{P21_NS}dataSection> ?s }} }}"))
 
 
+def test_sections_on_one_line_are_kept(tmp_path: Path) -> None:
+    """Section openers need not start a line: a file written on one line keeps its two sections."""
+    one_line = HEADER.replace("DATA;\n", "") + ("DATA('a',('TURNING_SCHEMA'));#1=PROPERTY_PARAMETER('x');ENDSEC;"
+                                               "DATA('b',('TURNING_SCHEMA'));#2=PROPERTY_PARAMETER('y');ENDSEC;"
+                                               "END-ISO-10303-21;")
+    path = tmp_path / "one_line.stp"
+    path.write_text(one_line, encoding="utf-8")
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path])
+    text = sg.export(store, "p21", r.graph).decode()
+    assert text.index("DATA('a'") < text.index("#1=") < text.index("DATA('b'") < text.index("#2=")
+    assert_round_trip(store, r.graph, tmp_path)
+
+
 def test_edition3_value_names_keep_the_instance_raw(tmp_path: Path) -> None:
     data = "#1=CONST_SPINDLE_SPEED(@7);\n#2=CONST_SPINDLE_SPEED(800.);"
     store = sg.open_store(memory=True)

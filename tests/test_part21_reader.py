@@ -95,6 +95,7 @@ def test_edition3_names_as_values() -> None:
     ("ANCHOR;\na=#1;\nENDSEC;", 6, 1, "anchor name"),         # a name without <>
     ("REFERENCE;\n#5=#6;\nENDSEC;", 6, 4, "<uri>"),           # not a resource
     ("REFERENCE;\n#A=<x.stp#a>;\nENDSEC;", 6, 1, "#id, @id"),  # a constant cannot be defined outside
+    ("REFERENCE;\n@_B=<x.stp#b>;\nENDSEC;", 6, 1, "#id, @id"),  # nor one whose name starts with '_'
 ])
 def test_edition3_section_errors_are_positioned(section: str, line: int, column: int, expected: str) -> None:
     text = wrap("#1=E();").replace("DATA;", section + "\nDATA;")

@@ -31,7 +31,10 @@ OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
 PROV = "http://www.w3.org/ns/prov#"
 RDFS = "http://www.w3.org/2000/01/rdf-schema#"
 _DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
-_DATA_OPENER = re.compile(r"(?m)^[ \t]*DATA[ \t\r\n]*[(;]")
+#: A DATA section opener anywhere (files written on one line exist). A match
+#: inside a string only adds section triples, which still round-trip; missing
+#: a real opener would merge sections on export.
+_DATA_OPENER = re.compile(r"\bDATA[ \t\r\n]*[(;]")
 #: FILE_SCHEMA names accepted besides the model's own schema names: NIST's
 #: merged schema, which holds exactly the schemas stepnc-graph ships.
 SCHEMA_ALIASES = {"COMBINED_SCHEMA"}

@@ -385,7 +385,7 @@ class Part21Reader:
             kind, tok, start, end = self._token(pos)
             if kind == "kw" and tok.upper() == "ENDSEC":
                 return self._expect(end, ";")
-            if kind not in ("ref", "name") or tok[1:2].isalpha():
+            if kind not in ("ref", "name") or not tok[1:2].isdigit():  # a constant is not defined here
                 raise _Failure(f"expected #id, @id or ENDSEC, found {tok!r}", start, ("#id", "@id", "ENDSEC"))
             ukind, utok, ustart, uend = self._token(self._expect(end, "="))
             if ukind != "uri":
