@@ -39,6 +39,8 @@ P21_NS = "https://w3id.org/stepnc-graph/p21#"
 P21_ONTOLOGY = "https://w3id.org/stepnc-graph/p21"
 
 DATA_BASE = "https://w3id.org/stepnc-graph/data/"
+#: The named graph holding the vocabulary (ontology/*.ttl) in a store.
+VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
 TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
 
 STEPNC = Namespace(STEPNC_NS)
@@ -85,6 +87,15 @@ def instance_prefix(graph_iri: str) -> str:
 
 def instance_iri(graph_iri: str, p21_id: int) -> str:
     return f"{instance_prefix(graph_iri)}i{p21_id}"
+
+
+def derived_graph_iri(graph_iri: str) -> str:
+    """The named graph that holds the derived (query) layer of a loaded file's graph.
+
+    It lives beside the lossless program graph, is written in the same atomic
+    load and removed with it, and the Part 21 writer never reads it.
+    """
+    return f"{instance_prefix(graph_iri)}derived"
 
 
 def section_iri(graph_iri: str, index: int) -> str:

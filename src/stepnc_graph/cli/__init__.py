@@ -1,0 +1,38 @@
+"""The ``stepnc-graph`` command line. The only package that prints.
+
+One module per command group, each a thin layer over the Python API:
+:mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info).
+Shared pieces (consoles, exit codes, store options) are in :mod:`.common`.
+
+Exit codes, for scripts: 0 ok; 1 the data does not conform (diagnostics, a
+stale generated file, incomplete coverage); 2 bad input or usage (syntax or
+schema errors, unknown options).
+"""
+
+from __future__ import annotations
+
+import click
+
+from stepnc_graph import __version__
+from stepnc_graph.cli import ontology, schema, store
+from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_NONCONFORMING, EXIT_OK
+
+__all__ = ["EXIT_BAD_INPUT", "EXIT_NONCONFORMING", "EXIT_OK", "main"]
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="stepnc-graph")
+def main() -> None:
+    """STEP-NC (ISO 14649) process data as a knowledge graph.
+
+    The EXPRESS schemas of ISO 14649 are compiled to an OWL vocabulary;
+    Part 21 programs become RDF you can query with SPARQL and check with SHACL.
+
+    Exit codes: 0 ok, 1 non-conforming data, 2 bad input or usage.
+    """
+
+
+main.add_command(ontology.ontology)
+main.add_command(schema.schema)
+for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd):
+    main.add_command(command)

@@ -1,0 +1,82 @@
+"""`stepnc-graph ontology`: build and inspect the generated vocabulary."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+from rich.table import Table
+
+from stepnc_graph.cli.common import EXIT_NONCONFORMING, EXIT_OK, err, fail_input, out, root_option
+from stepnc_graph.express import ExpressSyntaxError
+from stepnc_graph.resources import data_root
+from stepnc_graph.schema import SchemaError
+
+
+@click.group()
+def ontology() -> None:
+    """Build and inspect the OWL vocabulary generated from ontology/express/."""
+
+
+@ontology.command("build")
+@root_option
+@click.option("--check", is_flag=True, help="Write nothing; exit 1 if any generated file differs from a fresh build.")
+def ontology_build(root: Path | None, check: bool) -> None:
+    """Regenerate ontology/*.ttl, docs/ontology.html and the Python vocabulary.
+
+    Output is byte-stable: building twice changes nothing.
+    """
+    from stepnc_graph.build import build
+
+    root = root or data_root()
+    started = time.perf_counter()
+    try:
+        with err.status("building the ontology from ontology/express/ ..."):
+            result = build(root, check=check)
+    except (ExpressSyntaxError, SchemaError) as exc:
+        fail_input(exc)
+    seconds = time.perf_counter() - started
+    if check:
+        for rel in result.stale:
+            out.print(f"stale: {rel}")
+        out.print(f"{len(result.unchanged)} up to date, {len(result.stale)} stale ({seconds:.2f} s)")
+        sys.exit(EXIT_NONCONFORMING if result.stale else EXIT_OK)
+    for rel in result.written:
+        out.print(f"wrote {rel}")
+    out.print(f"{len(result.written)} written, {len(result.unchanged)} unchanged ({seconds:.2f} s)")
+
+
+@ontology.command("stats")
+@root_option
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
+    """Entities, types and attributes per schema: in the EXPRESS and in the ontology.
+
+    The two counts must be equal (100 % coverage); exit 1 if they are not.
+    """
+    from stepnc_graph.stats import ontology_stats
+
+    try:
+        rows = ontology_stats(root or data_root())
+    except (ExpressSyntaxError, SchemaError) as exc:
+        fail_input(exc, fmt)
+    complete = all(r.complete for r in rows)
+    if fmt == "json":
+        click.echo(json.dumps({"complete": complete, "schemas": [r.asdict() for r in rows]}, indent=2))
+    else:
+        table = Table(title="ISO 14649 ontology coverage (EXPRESS / OWL)")
+        for col in ("schema", "entities", "types", "attributes", "complete"):
+            table.add_column(col, justify="left" if col == "schema" else "right")
+        for r in rows:
+            table.add_row(r.schema, f"{r.express_entities} / {r.owl_entities}", f"{r.express_types} / {r.owl_types}",
+                          f"{r.express_attributes} / {r.owl_attributes}", "yes" if r.complete else "NO")
+        table.add_row("total", *(f"{sum(getattr(r, 'express_' + k) for r in rows)} / "
+                                 f"{sum(getattr(r, 'owl_' + k) for r in rows)}"
+                                 for k in ("entities", "types", "attributes")), "yes" if complete else "NO")
+        out.print(table)
+    sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
+
+
