@@ -259,9 +259,10 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
     job = _Load.of_file(path, lenient, base_iri, progress)
     extra: list[Diagnostic] = []
 
-    def before_commit(where: str) -> None:
+    def before_commit(target: Callable[[str], str]) -> None:
         # The dangling-reference check needs the loaded graph, so the count of
         # diagnostics is the last triple written, inside the same atomic load.
+        where = target(job.graph)
         extra.extend(job.dangling(store, where))
         count = len(job.diagnostics()) + len(extra)
         store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")

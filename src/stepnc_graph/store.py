@@ -30,7 +30,7 @@ import queue
 import shutil
 import threading
 import uuid
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -144,15 +144,19 @@ class GraphStore:
     # -- writing ----------------------------------------------------------------------
 
     def replace_graph(self, graph: str, chunks: Iterable[str],
-                      before_commit: Callable[[str], None] | None = None) -> None:
+                      before_commit: Callable[[Callable[[str], str]], None] | None = None,
+                      companions: Sequence[str] = ()) -> None:
         """Atomically make ``graph`` hold exactly the N-Triples in ``chunks``.
 
-        ``before_commit(name)`` runs after the data is in the store (in graph
-        ``name``, which may be a staging graph) but before the load is
-        committed; an exception from it (or from ``chunks``) rolls back.
+        ``companions`` are graphs that belong to ``graph`` (its derived layer):
+        they are emptied with it and may be written by ``before_commit``.
+        ``before_commit(target)`` runs after the data is in the store but before
+        the load is committed; ``target(name)`` gives the graph to write now for
+        ``graph`` or a companion (a staging graph, for an in-memory
+        replacement). An exception from it (or from ``chunks``) rolls back.
         """
         if self.path is None:
-            self._replace_in_memory(graph, chunks, before_commit)
+            self._replace_in_memory(graph, chunks, before_commit, companions)
             return
         journal = self._journal
         journal.mkdir()
@@ -160,10 +164,11 @@ class GraphStore:
             self._store.flush()
             self._store.backup(str(journal / "checkpoint"))
             (journal / "loading").write_text(graph)
-            self._store.remove_graph(ox.NamedNode(graph))
+            for name in (graph, *companions):
+                self._store.remove_graph(ox.NamedNode(name))
             self._bulk_load(graph, chunks)
             if before_commit is not None:
-                before_commit(graph)
+                before_commit(lambda name: name)
             self._store.flush()
         except BaseException:
             self._reopen()
@@ -225,30 +230,33 @@ class GraphStore:
             raise errors[0]
 
     def _replace_in_memory(self, graph: str, chunks: Iterable[str],
-                           before_commit: Callable[[str], None] | None) -> None:
-        """A new graph loads in place (rollback: drop it); a replacement goes through a
-        staging graph moved into place in one SPARQL Update transaction."""
-        replacing = self._store.contains_named_graph(ox.NamedNode(graph))
-        target = STAGING + uuid.uuid4().hex if replacing else graph
+                           before_commit: Callable[[Callable[[str], str]], None] | None,
+                           companions: Sequence[str]) -> None:
+        """Every graph is written under a staging name, then all are moved into place
+        in one SPARQL Update transaction (rollback: drop the staging graphs)."""
+        staging = {name: STAGING + uuid.uuid4().hex for name in (graph, *companions)}
         try:
-            self._bulk_load(target, chunks)
+            self._bulk_load(staging[graph], chunks)
             if before_commit is not None:
-                before_commit(target)
+                before_commit(lambda name: staging[name])
         except BaseException:
-            self._store.remove_graph(ox.NamedNode(target))
+            for name in staging.values():
+                self._store.remove_graph(ox.NamedNode(name))
             raise
-        if replacing:
-            self._store.update(f"DROP SILENT GRAPH <{graph}> ; MOVE SILENT GRAPH <{target}> TO <{graph}>")
+        self._store.update(" ; ".join(f"DROP SILENT GRAPH <{name}> ; MOVE SILENT GRAPH <{tmp}> TO <{name}>"
+                                      for name, tmp in staging.items()))
 
     def add_ntriples(self, graph: str, text: str) -> None:
         """Add a few N-Triples to ``graph`` in one transaction (for use inside ``before_commit``)."""
         self._store.load(text, ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
 
-    def remove_graph(self, graph: str) -> bool:
+    def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool:
+        """Remove ``graph`` and its ``companions``; False if ``graph`` was not there."""
         node = ox.NamedNode(graph)
         if not self._store.contains_named_graph(node):
             return False
-        self._store.remove_graph(node)
+        for name in (graph, *companions):
+            self._store.remove_graph(ox.NamedNode(name))
         if self.path is not None:
             self._store.flush()
         return True
