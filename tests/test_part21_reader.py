@@ -189,10 +189,12 @@ def test_deep_nesting_is_an_error_not_a_crash() -> None:
 # -- lenient --------------------------------------------------------------------
 
 
-def test_lenient_drops_only_the_broken_instance() -> None:
+def test_lenient_keeps_the_broken_instance_as_text() -> None:
     got, r = instances("#1=A(1,2;\n#2=B();\n#3=C(#4#5);\n#4=D();", lenient=True)
-    assert [i.id for i in got] == [2, 4]
+    assert [(i.id, i.unreadable is not None) for i in got] == [(1, True), (2, False), (3, True), (4, False)]
     assert [(d.code, d.p21_id, d.line) for d in r.diagnostics] == [("P21-SYNTAX", 1, 6), ("P21-SYNTAX", 3, 8)]
+    assert [r.text[i.start:i.end] for i in got if i.unreadable] == ["#1=A(1,2;", "#3=C(#4#5);"]
+    assert got[0].name == "A" and got[0].params == [] and "expected ',' or ')'" in (got[0].unreadable or "")
     assert r.defined == 4
 
 
@@ -223,8 +225,9 @@ def test_fail_fixtures_expected_reader_diagnostics(path: Path) -> None:
     loaded = list(r.instances())
     got = [[d.code, d.line, d.p21_id] for d in r.diagnostics]
     assert got == expected["diagnostics"]
-    dropped = {d.p21_id for d in r.diagnostics if d.severity == "error"}
-    assert _count_definitions(path) == r.defined == len(loaded) + len(dropped)
+    repeated = [d for d in r.diagnostics if d.code == "P21-DUPLICATE-ID"]
+    assert len(r.duplicate_texts) == len(repeated)
+    assert _count_definitions(path) == r.defined == len(loaded) + len(repeated)
 
 
 CORPUS_COUNTS = {"EXAMPLE1_FDIS_14649-11_2001.stp": 108, "EXAMPLE2_FDIS_14649-11_2001.stp": 544,

@@ -20,17 +20,17 @@ import pyoxigraph as ox
 from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
-from stepnc_graph.mapping.plan import iso14649_plans
+from stepnc_graph.mapping.plan import P21_DUPLICATE_TEXT, iso14649_plans
 from stepnc_graph.naming import P21_NS, TOOL_IRI, alias_iri, default_graph_iri, instance_prefix, section_iri
 from stepnc_graph.part21.diagnostics import Diagnostic
-from stepnc_graph.part21.reader import Header, Part21Reader
+from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
+from stepnc_graph.part21.source import decode_source, read_source
 from stepnc_graph.store import GraphStore
 
 DCT = "http://purl.org/dc/terms/"
 OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
 PROV = "http://www.w3.org/ns/prov#"
 RDFS = "http://www.w3.org/2000/01/rdf-schema#"
-_DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
 #: A DATA section opener anywhere (files written on one line exist). A match
 #: inside a string only adds section triples, which still round-trip; missing
 #: a real opener would merge sections on export.
@@ -50,7 +50,8 @@ class LoadResult:
     path: str
     graph: str
     instances: int = 0
-    raw: int = 0
+    raw: int = 0  # kept raw: do not fit the schema, or (unreadable) do not parse
+    unreadable: int = 0
     triples: int = 0
     defined: int = 0
     seconds: float = 0.0
@@ -59,17 +60,10 @@ class LoadResult:
     def asdict(self) -> dict[str, Any]:
         return {
             "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
+            "unreadable_instances": self.unreadable,
             "triples": self.triples, "seconds": round(self.seconds, 3),
             "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
         }
-
-
-def decode_bytes(raw: bytes) -> str:
-    """UTF-8, falling back to ISO 8859-1 (every byte decodes) for legacy files."""
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
 
 
 def _header_triples(g: str, header: Header) -> list[str]:
@@ -103,22 +97,29 @@ def _header_triples(g: str, header: Header) -> list[str]:
 
 
 class _Load:
-    """One file's load: holds the reader, the mapper and the running counts."""
+    """One file's load: holds the reader, the mapper and the running counts.
 
-    def __init__(self, path: Path, text: str, raw: bytes, lenient: bool, graph: str,
+    ``path`` is the file (None for standard input); ``name`` is what messages
+    and the graph's ``dcterms:source`` call it.
+    """
+
+    def __init__(self, name: str, path: Path | None, raw: bytes, lenient: bool, graph: str,
                  progress: Progress | None) -> None:
         self.path = path
+        self.name = name
+        text, encoding = decode_source(raw, name)
         self.text = text
         self.raw = raw
         self.graph = graph
         self.progress = progress
-        self.reader = Part21Reader(text, str(path), lenient)
+        self.reader = Part21Reader(text, name, lenient)
+        self.reader.diagnostics[:0] = encoding
         prefix = instance_prefix(graph)
         several = len(_DATA_OPENER.findall(text)) > 1  # edition 3: instances record their section
         self.mapper = InstanceMapper(iso14649_plans(),
-                                     lambda i: f"{prefix}i{i}", {int(x) for x in _DEFINITION.findall(text)},
-                                     str(path), text, (lambda i: section_iri(graph, i + 1)) if several else None)
-        self.result = LoadResult(str(path), graph)
+                                     lambda i: f"{prefix}i{i}", defined_ids(text),
+                                     name, text, (lambda i: section_iri(graph, i + 1)) if several else None)
+        self.result = LoadResult(name, graph)
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
 
@@ -126,8 +127,7 @@ class _Load:
     def of_file(cls, path: str | Path, lenient: bool, base_iri: str | None, progress: Progress | None) -> "_Load":
         """The load of ``path`` into graph ``base_iri`` (default: from the file name)."""
         p = Path(path)
-        raw = p.read_bytes()
-        return cls(p, decode_bytes(raw), raw, lenient, base_iri or default_graph_iri(str(p)), progress)
+        return cls(str(p), p, read_source(p), lenient, base_iri or default_graph_iri(str(p)), progress)
 
     def chunks(self) -> Iterator[str]:
         out: list[str] = []
@@ -143,8 +143,10 @@ class _Load:
                 if self.progress:
                     self.progress(inst.end, total)
         out.extend(self.aliases())
+        out.extend(self.duplicates())
         result.triples += len(out)
         result.raw = self.mapper.raw_count
+        result.unreadable = len(self.mapper.unreadable)
         result.defined = self.reader.defined
         meta = self.metadata()
         result.triples += len(meta)
@@ -158,17 +160,24 @@ class _Load:
         return [f"<{alias_iri(g, scope, label)}> {OWL_SAME_AS} <{target}> .\n"
                 for (scope, label), target in sorted(self.mapper.labels.items()) if target is not None]
 
+    def duplicates(self) -> list[str]:
+        """The text of each later definition of an #id, on the instance it repeats."""
+        subject, text = self.mapper.subject, self.text
+        return [f"<{subject(i)}> {P21_DUPLICATE_TEXT} {T.string(text[start:end])} .\n"
+                for i, start, end in self.reader.duplicate_texts]
+
     def metadata(self) -> list[str]:
         g = self.graph
         s = f"<{g}>"
         now = datetime.now(timezone.utc).isoformat(timespec="seconds")
         activity = f"<{instance_prefix(g)}load>"
         tool = f"<{TOOL_IRI}{__version__}>"
+        used = [f"{activity} <{PROV}used> <{self.path.resolve().as_uri()}> .\n"] if self.path else []
         out = [
             f"{s} {T.RDF_TYPE} <{P21_NS}ExchangeStructure> .\n",
             f"{s} {T.RDF_TYPE} <{PROV}Entity> .\n",
-            f"{s} <{DCT}source> {T.string(str(self.path))} .\n",
-            f"{s} <{PROV}hadPrimarySource> <{self.path.resolve().as_uri()}> .\n",
+            f"{s} <{DCT}source> {T.string(str(self.path.resolve()) if self.path else self.name)} .\n",
+            *([f"{s} <{PROV}hadPrimarySource> <{self.path.resolve().as_uri()}> .\n"] if self.path else []),
             f"{s} <{P21_NS}byteSize> {T.integer(len(self.raw))} .\n",
             f"{s} <{P21_NS}sha256> {T.string(hashlib.sha256(self.raw).hexdigest())} .\n",
             f"{s} <{P21_NS}instanceCount> {T.integer(self.result.instances)} .\n",
@@ -176,7 +185,7 @@ class _Load:
             f"{s} <{PROV}generatedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
             f"{s} <{PROV}wasGeneratedBy> {activity} .\n",
             f"{activity} {T.RDF_TYPE} <{PROV}Activity> .\n",
-            f"{activity} <{PROV}used> <{self.path.resolve().as_uri()}> .\n",
+            *used,
             f"{activity} <{PROV}wasAssociatedWith> {tool} .\n",
             f"{activity} <{PROV}endedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
             f"{tool} {T.RDF_TYPE} <{PROV}SoftwareAgent> .\n",
@@ -205,7 +214,7 @@ class _Load:
 
     def schema_diagnostics(self) -> list[Diagnostic]:
         unknown = [s for s in self.reader.header.schemas if s not in self.known_schemas]
-        return [Diagnostic.make("P21-UNKNOWN-SCHEMA", str(self.path), 1, 1, None,
+        return [Diagnostic.make("P21-UNKNOWN-SCHEMA", self.name, 1, 1, None,
                                 f"FILE_SCHEMA names {name}, not one of the loaded schemas") for name in unknown]
 
     def diagnostics(self) -> list[Diagnostic]:
@@ -213,30 +222,33 @@ class _Load:
         return sorted(found, key=lambda d: (d.line, d.column, d.code))
 
     def dangling(self, store: GraphStore, where: str) -> list[Diagnostic]:
-        """References to instances the reader could not read (lenient mode only)."""
-        dropped = {d.p21_id for d in self.reader.diagnostics if d.code == "P21-SYNTAX" and d.p21_id is not None}
-        if not dropped:
+        """References to instances the reader could not read (lenient mode only): from
+        mapped instances (found in the graph) and from raw ones (their parsed references)."""
+        unreadable = self.mapper.unreadable
+        if not unreadable:
             return []
+        found: set[tuple[int, int, int, int]] = set()  # (line, column, referrer, target)
+        for p21_id, line, column, refs in self.mapper.raw_refs:
+            found.update((line, column, p21_id, target) for target in refs if target in unreadable)
         prefix = instance_prefix(self.graph)
         graph = ox.NamedNode(where)  # the graph holding the data now (maybe a staging graph)
         ox_store = store.oxigraph
-        out = []
-        for target in sorted(dropped):
-            node = ox.NamedNode(f"{prefix}i{target}")
-            for quad in ox_store.quads_for_pattern(None, None, node, graph):
+        id_term, line_term = ox.NamedNode(P21_NS + "id"), ox.NamedNode(P21_NS + "line")
+        for target in sorted(unreadable):
+            for quad in ox_store.quads_for_pattern(None, None, ox.NamedNode(f"{prefix}i{target}"), graph):
                 owner: Any = quad.subject
                 while isinstance(owner, ox.BlankNode):  # a list cell or typed value: find its instance
                     holder = next(iter(ox_store.quads_for_pattern(None, None, owner, graph)), None)
                     owner = holder.subject if holder is not None else None
                 if owner is None:
                     continue
-                ids = list(ox_store.quads_for_pattern(owner, ox.NamedNode(P21_NS + "id"), None, graph))
-                lines = list(ox_store.quads_for_pattern(owner, ox.NamedNode(P21_NS + "line"), None, graph))
+                ids = list(ox_store.quads_for_pattern(owner, id_term, None, graph))
+                lines = list(ox_store.quads_for_pattern(owner, line_term, None, graph))
                 if ids and lines:
-                    line, p21_id = int(str(lines[0].object.value)), int(str(ids[0].object.value))  # type: ignore[union-attr]
-                    out.append(Diagnostic.make("P21-UNRESOLVED-REF", str(self.path), line, 1, p21_id,
-                                               f"refers to #{target}, which was not loaded (see its P21-SYNTAX error)"))
-        return out
+                    found.add((int(str(lines[0].object.value)), 1, int(str(ids[0].object.value)), target))  # type: ignore[union-attr]
+        return [Diagnostic.make("P21-UNRESOLVED-REF", self.name, line, column, p21_id,
+                                f"refers to #{target}, which could not be read (see its syntax error)")
+                for line, column, p21_id, target in sorted(found)]
 
 
 def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | None = None) -> Iterator[str]:

@@ -50,6 +50,13 @@ TERMS: tuple[Term, ...] = (
     Term("RawInstance", "class", "An instance kept verbatim because it does not fit the schema; see p21:rawText."),
     Term("rawText", "data", "The Part 21 text of an instance that could not be mapped to the schema."),
     Term("entityName", "data", "The entity name(s) a raw instance was written with, '+'-separated for complex ones."),
+    Term("UnreadableInstance", "class", "An instance with a syntax error, kept as its source text (p21:rawText) so "
+                                        "nothing of the file is lost; the Part 21 export writes it as a comment."),
+    Term("syntaxError", "data", "Why an unreadable instance could not be read, as the reader reported it."),
+    Term("repairedText", "data", "The Part 21 text of a raw instance as the lenient reader repaired it (a missing "
+                                 "';', a typographic quote); the export writes it, p21:rawText keeps the original."),
+    Term("duplicateText", "data", "The text of a later definition of the instance's #id, which was not loaded; "
+                                  "the Part 21 export writes it as a comment."),
     # loaded files (subject: the named graph of one file)
     Term("ExchangeStructure", "class", "A Part 21 file loaded as one named graph; the graph IRI is the subject."),
     Term("headerText", "data", "The HEADER section of the file, verbatim, so the writer can restore it."),

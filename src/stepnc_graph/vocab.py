@@ -1323,6 +1323,7 @@ class P21(DefinedNamespace):
     ExchangeStructure: URIRef
     RawInstance: URIRef
     TypedValue: URIRef
+    UnreadableInstance: URIRef
     abstract: URIRef
     aggregate: URIRef
     anchorName: URIRef
@@ -1335,6 +1336,7 @@ class P21(DefinedNamespace):
     derivation: URIRef
     derivedValue: URIRef
     diagnosticCount: URIRef
+    duplicateText: URIRef
     elementType: URIRef
     emptyAggregate: URIRef
     entityName: URIRef
@@ -1359,6 +1361,7 @@ class P21(DefinedNamespace):
     rawText: URIRef
     redeclaration: URIRef
     referenceSectionText: URIRef
+    repairedText: URIRef
     schema: URIRef
     schemaName: URIRef
     sectionIndex: URIRef
@@ -1366,6 +1369,7 @@ class P21(DefinedNamespace):
     sha256: URIRef
     signatureText: URIRef
     supertypeExpression: URIRef
+    syntaxError: URIRef
     underlyingDatatype: URIRef
     underlyingType: URIRef
     uniqueRule: URIRef

@@ -5,8 +5,11 @@ An instance that fits the schema becomes a node typed with its entity class
 value, in the representation of :mod:`stepnc_graph.typemap`. One that does not
 fit -- unknown entity name, wrong parameter count, a value of the wrong type, a
 reference to an instance the file does not define -- is kept as a
-``p21:RawInstance`` holding its exact source text, with a diagnostic, so
-nothing is lost and the writer can put it back.
+``p21:RawInstance`` holding its exact source text, with a diagnostic (one per
+problem: every unresolved reference is reported), so nothing is lost and the
+writer can put it back. An instance the lenient reader repaired also keeps the
+repaired text, which is what the writer writes; one it could not read at all is
+a ``p21:UnreadableInstance`` holding its text and the syntax error.
 """
 
 from __future__ import annotations
@@ -23,7 +26,10 @@ from stepnc_graph.mapping.plan import (
     P21_LINE,
     P21_RAW,
     P21_RAW_TEXT,
+    P21_REPAIRED_TEXT,
     P21_SECTION,
+    P21_SYNTAX_ERROR,
+    P21_UNREADABLE,
     P21_UNKNOWN,
     P21_UNSET,
     P21_VALUE,
@@ -33,6 +39,7 @@ from stepnc_graph.mapping.plan import (
     Slot,
 )
 from stepnc_graph.part21.diagnostics import Diagnostic
+from stepnc_graph.part21.format import FormatError, format_instance
 from stepnc_graph.part21.reader import Instance
 from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
@@ -64,6 +71,22 @@ def describe(value: Any) -> str:
     return str(value)
 
 
+def _refs(inst: Instance) -> list[int]:
+    """Every instance reference among the instance's parameters, nested ones included."""
+    found: list[int] = []
+    stack: list[Any] = list(inst.params) if inst.parts is None else [p for _, ps in inst.parts for p in ps]
+    while stack:
+        value = stack.pop()
+        kind = type(value)
+        if kind is Ref:
+            found.append(int(value))
+        elif kind is list:
+            stack.extend(value)
+        elif kind is Typed:
+            stack.append(value.value)
+    return found
+
+
 class InstanceMapper:
     """Turns instances of one file into N-Triples lines for one named graph.
 
@@ -83,6 +106,11 @@ class InstanceMapper:
         self.source = source
         self.diagnostics: list[Diagnostic] = []
         self.raw_count = 0
+        #: ids of instances the reader could not read (their text is kept)
+        self.unreadable: set[int] = set()
+        #: references made by raw instances: (#id, line, column, referenced ids), for the
+        #: check against unreadable instances once the whole file is read
+        self.raw_refs: list[tuple[int, int, int, list[int]]] = []
         self._bnode = 0
         #: (declaring entity, its_id) -> the one instance IRI with that label, or
         #: None when several instances share it (then it identifies nothing).
@@ -211,6 +239,9 @@ class InstanceMapper:
     def map(self, inst: Instance, out: list[str]) -> None:
         """Append the instance's triples to ``out`` (raw form if it does not fit)."""
         s = f"<{self.subject(inst.id)}>"
+        if inst.unreadable is not None:
+            self._unreadable(inst, s, out)
+            return
         lines: list[str] = []
         labels: list[tuple[str, Any]] = []
         try:
@@ -232,7 +263,14 @@ class InstanceMapper:
                     if plan.own_its_id is not None:
                         labels.append((plan.own_slots[plan.own_its_id].entity, params[plan.own_its_id]))
         except Mismatch as m:
-            self._diagnose(inst, m.code, m.message)
+            # the rare path: report the mismatch and every reference the file does not define
+            refs = sorted(set(_refs(inst)))
+            if m.code != "P21-UNRESOLVED-REF":
+                self._diagnose(inst, m.code, m.message)
+            for target in refs:
+                if target not in self.defined:
+                    self._diagnose(inst, "P21-UNRESOLVED-REF", f"refers to #{target}, which is not defined in the file")
+            self.raw_refs.append((inst.id, inst.line, inst.column, refs))
             self._raw(inst, s, out)
             return
         for scope, value in labels:
@@ -259,6 +297,23 @@ class InstanceMapper:
         out.append(f"{s} {T.RDF_TYPE} {P21_RAW} .\n")
         out.append(f"{s} {P21_ENTITY_NAME} {T.string(names)} .\n")
         out.append(f"{s} {P21_RAW_TEXT} {T.string(self.source[inst.start:inst.end])} .\n")
+        if inst.repaired:
+            try:
+                out.append(f"{s} {P21_REPAIRED_TEXT} {T.string(format_instance(inst))} .\n")
+            except FormatError:  # pragma: no cover - the reader reads no value format_instance cannot write
+                pass
+        self._source(inst, s, out)
+
+    def _unreadable(self, inst: Instance, s: str, out: list[str]) -> None:
+        """An instance with a syntax error: its text and the error, so nothing of the file is lost."""
+        self.raw_count += 1
+        self.unreadable.add(inst.id)
+        out.append(f"{s} {T.RDF_TYPE} {P21_RAW} .\n")
+        out.append(f"{s} {T.RDF_TYPE} {P21_UNREADABLE} .\n")
+        if inst.name is not None:
+            out.append(f"{s} {P21_ENTITY_NAME} {T.string(inst.name)} .\n")
+        out.append(f"{s} {P21_RAW_TEXT} {T.string(self.source[inst.start:inst.end])} .\n")
+        out.append(f"{s} {P21_SYNTAX_ERROR} {T.string(inst.unreadable or '')} .\n")
         self._source(inst, s, out)
 
     def _diagnose(self, inst: Instance, code: str, message: str) -> None:

@@ -3,9 +3,14 @@
 The inverse of :mod:`stepnc_graph.mapping.mapper`, driven by the same plans:
 each instance node becomes ``#id=NAME(...)`` with its parameters in Part 21
 order -- missing values ``$``, ``p21:derivedValue`` ``*``, ``rdf:List`` in
-order, SET members sorted (sets have no order) -- and each ``p21:RawInstance``
-its source text, verbatim. Instances keep their ``p21:id``; nodes without one
-(added by SPARQL Update, say) get fresh ids above the largest.
+order, SET members in ascending ``#id`` order (sets have no order; this keeps
+a set written in order unchanged) -- and each ``p21:RawInstance`` its source
+text, verbatim, or the text the lenient reader repaired (``p21:repairedText``).
+What the reader could not read (``p21:UnreadableInstance``, a later definition
+of an ``#id``) is written as a comment holding its text: the output always
+parses strictly, and nothing of the original is lost. Instances keep their
+``p21:id``; nodes without one (added by SPARQL Update, say) get fresh ids above
+the largest.
 """
 
 from __future__ import annotations
@@ -21,9 +26,12 @@ from stepnc_graph.mapping.plan import (
     P21_DERIVED,
     P21_EMPTY,
     P21_ID,
+    P21_DUPLICATE_TEXT,
     P21_RAW,
     P21_RAW_TEXT,
+    P21_REPAIRED_TEXT,
     P21_SECTION,
+    P21_UNREADABLE,
     P21_UNKNOWN,
     P21_UNSET,
     P21_VALUE,
@@ -33,6 +41,8 @@ from stepnc_graph.mapping.plan import (
 )
 from stepnc_graph.mapping.terms import RDF, RDF_TYPE, XSD
 from stepnc_graph.naming import P21_NS
+from stepnc_graph.part21.format import FormatError
+from stepnc_graph.part21.format import format_real as part21_real
 from stepnc_graph.part21.strings import encode
 
 _TRAILING_ID = re.compile(r"i([0-9]+)$")
@@ -51,13 +61,20 @@ def _key(term: Any) -> str:
 
 def format_real(value: float) -> str:
     """A Part 21 REAL: always with a decimal point (``1.``, ``2.5E-03``)."""
-    text = repr(float(value))
-    if "e" in text:
-        mantissa, exponent = text.split("e")
-        return (mantissa if "." in mantissa else mantissa + ".") + "E" + exponent
-    if text in ("inf", "-inf", "nan"):
-        raise WriteError(f"{text} cannot be written in Part 21")
-    return text
+    try:
+        return part21_real(value)
+    except FormatError as e:
+        raise WriteError(str(e)) from None
+
+
+def comment(text: str) -> str:
+    """``text`` as a Part 21 comment (a ``*/`` inside is broken up so the comment ends where it should)."""
+    return "/* " + text.replace("*/", "* /") + " */"
+
+
+def _set_order(text: str) -> tuple[int, int, str]:
+    """Sort key of a written SET member: instance references by #id, then other values by text."""
+    return (0, int(text[1:]), "") if text[:1] == "#" and text[1:].isdigit() else (1, 0, text)
 
 
 class Part21Writer:
@@ -134,10 +151,22 @@ class Part21Writer:
     # -- instances ------------------------------------------------------------------
 
     def _instance(self, p21_id: int, key: str) -> str:
+        text = self._instance_text(p21_id, key)
+        repeated = self.props[key].get(P21_DUPLICATE_TEXT, [])
+        if repeated:
+            text += "".join("\n" + comment(f"stepnc-graph: a later definition of #{p21_id}, not loaded: {t.value}")
+                            for t in sorted(repeated, key=lambda t: t.value))
+        return text
+
+    def _instance_text(self, p21_id: int, key: str) -> str:
         p = self.props[key]
         types = [t.value for t in p.get(RDF_TYPE, [])]
+        if P21_UNREADABLE[1:-1] in types:
+            why = self._first(key, "syntaxError") or "a syntax error"
+            return comment(f"stepnc-graph: #{p21_id} could not be read ({why}); its text: "
+                           f"{p[P21_RAW_TEXT][0].value if P21_RAW_TEXT in p else ''}")
         if P21_RAW[1:-1] in types:
-            return str(p[P21_RAW_TEXT][0].value)
+            return str((p.get(P21_REPAIRED_TEXT) or p[P21_RAW_TEXT])[0].value)
         plans = [self.plans.by_class[t] for t in types if t in self.plans.by_class]
         if not plans:
             raise WriteError(f"{key} (#{p21_id}) has no entity type of the schema")
@@ -162,7 +191,8 @@ class Part21Writer:
                 if slot.prop in empty:
                     out.append("()")
                 elif values:
-                    out.append("(" + ",".join(sorted(self._value(slot.encoding, v) for v in values)) + ")")
+                    out.append("(" + ",".join(sorted((self._value(slot.encoding, v) for v in values), key=_set_order))
+                               + ")")
                 else:
                     out.append("$")
             elif values:

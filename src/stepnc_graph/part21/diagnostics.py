@@ -17,8 +17,13 @@ Severity = Literal["error", "warning", "info"]
 
 CODES: dict[str, tuple[Severity, str]] = {
     # syntax (reader)
-    "P21-SYNTAX": ("error", "the instance does not parse; it is not loaded"),
-    "P21-DUPLICATE-ID": ("error", "an instance name is defined twice; the later instance is not loaded"),
+    "P21-SYNTAX": ("error", "the instance does not parse; its text is kept (p21:UnreadableInstance)"),
+    "P21-DUPLICATE-ID": ("error", "an instance name is defined twice; the later definition's text is kept, "
+                                  "not loaded"),
+    "P21-TRUNCATED": ("error", "the file ends inside a DATA section: it looks cut short"),
+    "P21-END-MISSING": ("warning", "END-ISO-10303-21; is missing at the end of the file"),
+    "P21-OUTSIDE-SECTION": ("warning", "an instance outside a DATA section; read into the preceding one"),
+    "P21-ENCODING": ("warning", "a byte that is not UTF-8; read as ISO 8859-1"),
     "P21-CURLY-QUOTE": ("warning", "a string was closed by a typographic quote; read as closed there"),
     "P21-MISSING-SEMICOLON": ("warning", "';' missing after an instance; read as if present"),
     "P21-BARE-ENUM": ("warning", "an enumeration value written without dots; read as .VALUE."),

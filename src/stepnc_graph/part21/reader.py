@@ -26,7 +26,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from stepnc_graph.errors import show
 from stepnc_graph.part21.diagnostics import Diagnostic, Part21SyntaxError
+from stepnc_graph.part21.source import read_text_source
 from stepnc_graph.part21.strings import StringDecodeError, decode
 from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
@@ -52,6 +54,12 @@ _MAGIC = re.compile(r"(?:[ \t\r\n\f\v]+|/\*.*?\*/)*ISO-10303-21[ \t\r\n]*;", re.
 _END = re.compile(r"END-ISO-10303-21[ \t\r\n]*;", re.S)
 _SIGNATURE = re.compile(r"[ \t\r\n]*(SIGNATURE\b.*?\bENDSEC[ \t\r\n]*;)", re.S)
 _NEXT_STATEMENT = re.compile(r"(?m)^[ \t]*(?=#[0-9]+[ \t]*=)|\bENDSEC\b")
+#: where lenient reading can resume after something that is not a section: an
+#: instance, a section keyword or the end marker
+_RESUME = re.compile(r"(?m)^[ \t]*(?=#[0-9]+[ \t]*=)|\b(?:DATA|ENDSEC|END-ISO-10303-21)\b")
+_DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
+_COMMENT = re.compile(r"/\*.*?\*/", re.S)
+_ENTITY_NAME = re.compile(r"#[0-9]+[ \t\r\n]*=[ \t\r\n]*([A-Za-z_][A-Za-z0-9_]*)")
 _INSTANCE_START = re.compile(r"#[0-9]+[ \t\r\n]*=")
 _CURLY = "\u2019"
 _MAX_DEPTH = 200  # nested lists; deeper input is rejected, not a RecursionError or hang
@@ -75,6 +83,12 @@ class Instance:
     end: int
     parts: list[tuple[str, list[Any]]] | None = None
     section: int = 0  # which DATA section (0-based) holds the instance
+    #: lenient mode: the syntax error of an instance that could not be read.
+    #: Such an instance has no parameters; its text (``start:end``) is kept.
+    unreadable: str | None = None
+    #: lenient mode: the reader repaired the instance's text (a missing ';', a
+    #: typographic quote, a bare enumeration), so ``start:end`` is not valid Part 21
+    repaired: bool = False
 
     @property
     def names(self) -> list[str]:
@@ -131,6 +145,13 @@ class Part21Reader:
         self.header = Header()
         self.defined = 0
         self._ids: set[int] = set()
+        #: every '/*' from here on has no '*/' after it (checked before matching, so that a
+        #: file with many unclosed openers is not rescanned to its end once per opener)
+        last_close = text.rfind("*/")
+        self._unclosed_from = last_close + 2 if last_close >= 0 else 0
+        self._truncated = False  # lenient: the file ended inside a DATA section (reported once)
+        #: lenient: later definitions of an #id, not loaded: (#id, start, end) of their text
+        self.duplicate_texts: list[tuple[int, int, int]] = []
         self._line = 1
         self._line_start = 0
         self._cursor = 0  # offset up to which _line/_line_start are exact
@@ -174,7 +195,10 @@ class Part21Reader:
         """(kind, text, start, end) of the next token after whitespace and comments."""
         match = TOKEN.match
         text = self.text
+        unclosed = self._unclosed_from
         while True:
+            if pos >= unclosed and text.startswith("/*", pos):
+                return "bad", "/*", pos, pos + 2  # never closed: do not let the regex scan to the end
             m = match(text, pos)
             if m is None:
                 return "eof", "", pos, pos
@@ -186,7 +210,7 @@ class Part21Reader:
     def _expect(self, pos: int, what: str) -> int:
         kind, tok, start, end = self._token(pos)
         if tok.upper() != what:
-            found = "end of file" if kind == "eof" else repr(tok)
+            found = "end of file" if kind == "eof" else show(tok)
             raise _Failure(f"expected {what!r}, found {found}", start, (what,))
         return end
 
@@ -202,12 +226,15 @@ class Part21Reader:
         text = self.text
         kind, tok, start, pos = self._token(pos)
         if tok != "(":
-            raise _Failure(f"expected '(', found {tok!r}" if tok else "expected '(', found end of file", start, ("(",))
+            raise _Failure(f"expected '(', found {show(tok)}" if tok else "expected '(', found end of file", start, ("(",))
         stack: list[tuple[list[Any], str | None]] = []
         current: list[Any] = []
         typed: str | None = None
         expect_value = True
+        unclosed = self._unclosed_from
         while True:
+            if pos >= unclosed and text.startswith("/*", pos):
+                raise _Failure("comment '/*' is never closed", pos, ("*/",))
             m = match(text, pos)
             if m is None:
                 raise _Failure("unexpected end of file inside a parameter list", pos, (")",))
@@ -245,7 +272,7 @@ class Part21Reader:
                         pos = start
                         continue
                     else:
-                        raise _Failure(f"expected a parameter value, found {tok!r}", start,
+                        raise _Failure(f"expected a parameter value, found {show(tok)}", start,
                                        ("value", "$", "*", "("))
                 elif kind == "kw":
                     nkind, ntok, nstart, nend = self._token(pos)
@@ -256,9 +283,9 @@ class Part21Reader:
                         current, typed, pos = [], tok.upper(), nend
                         continue
                     if not self.lenient:
-                        raise _Failure(f"expected a parameter value, found {tok!r} (enumeration values are "
+                        raise _Failure(f"expected a parameter value, found {show(tok)} (enumeration values are "
                                        f"written .{tok.upper()}.)", start, ("value",))
-                    self._diagnose("P21-BARE-ENUM", start, p21_id, f"{tok!r} read as .{tok.upper()}.")
+                    self._diagnose("P21-BARE-ENUM", start, p21_id, f"{show(tok)} read as .{tok.upper()[:40]}.")
                     current.append(Enum(tok.upper()))
                 elif kind == "bin":
                     current.append(Binary(tok[1:-1]))
@@ -289,7 +316,7 @@ class Part21Reader:
             return _Failure("string is never closed", start, ("'",))
         if kind == "bad" and tok == "/*":
             return _Failure("comment '/*' is never closed", start, ("*/",))
-        return _Failure(f"expected {' or '.join(repr(e) for e in expected)}, found {tok!r}", start, expected)
+        return _Failure(f"expected {' or '.join(repr(e) for e in expected)}, found {show(tok)}", start, expected)
 
     def _string(self, tok: str, start: int, end: int, p21_id: int | None) -> tuple[str, int]:
         """Decode a string token; in lenient mode repair a typographic closing quote."""
@@ -322,7 +349,7 @@ class Part21Reader:
                     pos = self._expect(end, ";")
                     break
                 if kind != "kw":
-                    raise _Failure(f"expected a header entity or ENDSEC, found {tok!r}", start, ("ENDSEC",))
+                    raise _Failure(f"expected a header entity or ENDSEC, found {show(tok)}", start, ("ENDSEC",))
                 params, pos = self._params(end, None)
                 pos = self._expect(pos, ";")
                 self.header.entities[tok.upper()] = params
@@ -353,7 +380,7 @@ class Part21Reader:
             if kind == "kw" and tok.upper() == "ENDSEC":
                 return self._expect(end, ";")
             if kind != "uri":
-                raise _Failure(f"expected an anchor name <...> or ENDSEC, found {tok!r}", start, ("<name>", "ENDSEC"))
+                raise _Failure(f"expected an anchor name <...> or ENDSEC, found {show(tok)}", start, ("<name>", "ENDSEC"))
             item, pos = self._anchor_item(self._expect(end, "="))
             if isinstance(item, Ref):
                 self.header.anchors.append((tok[1:-1], int(item)))
@@ -363,7 +390,7 @@ class Part21Reader:
                     break
                 nkind, ntok, nstart, nend = self._token(tend)
                 if nkind != "kw":
-                    raise _Failure(f"expected a tag name, found {ntok!r}", nstart, ("tag name",))
+                    raise _Failure(f"expected a tag name, found {show(ntok)}", nstart, ("tag name",))
                 _, pos = self._anchor_item(self._expect(nend, ":"))
                 pos = self._expect(pos, "}")
             pos = self._expect(pos, ";")
@@ -377,7 +404,7 @@ class Part21Reader:
             return Ref(tok[1:]), end
         if kind in ("name", "uri", "int", "real", "str", "enum", "bin") or tok == "$":
             return Name(tok), end
-        raise _Failure(f"expected an anchor item, found {tok!r}", start, ("#id", "value", "<resource>"))
+        raise _Failure(f"expected an anchor item, found {show(tok)}", start, ("#id", "value", "<resource>"))
 
     def _reference_section(self, pos: int) -> int:
         """``#12 = <uri>;`` / ``@12 = <uri>;`` entries up to ``ENDSEC;`` (ISO 10303-21:2016, 10)."""
@@ -386,15 +413,15 @@ class Part21Reader:
             if kind == "kw" and tok.upper() == "ENDSEC":
                 return self._expect(end, ";")
             if kind not in ("ref", "name") or not tok[1:2].isdigit():  # a constant is not defined here
-                raise _Failure(f"expected #id, @id or ENDSEC, found {tok!r}", start, ("#id", "@id", "ENDSEC"))
+                raise _Failure(f"expected #id, @id or ENDSEC, found {show(tok)}", start, ("#id", "@id", "ENDSEC"))
             ukind, utok, ustart, uend = self._token(self._expect(end, "="))
             if ukind != "uri":
-                raise _Failure(f"expected a resource <uri>, found {utok!r}", ustart, ("<uri>",))
+                raise _Failure(f"expected a resource <uri>, found {show(utok)}", ustart, ("<uri>",))
             self.header.references.append((tok, utok[1:-1]))
             pos = self._expect(uend, ";")
 
     def _section_start(self, pos: int) -> int | None:
-        """After ``DATA;``/``DATA(...);`` return the offset; at the end marker return None."""
+        """After ``DATA;``/``DATA(...);`` return the offset; at the end of the file return None."""
         kind, tok, start, end = self._token(pos)
         if kind == "kw" and tok.upper() == "DATA":
             nkind, ntok, _, nend = self._token(end)
@@ -412,60 +439,121 @@ class Part21Reader:
             while (sig := _SIGNATURE.match(self.text, after)) is not None:
                 self.header.signatures.append(sig.group(1))
                 after = sig.end()
-        if m is None:
-            raise _Failure(f"expected DATA or END-ISO-10303-21, found {tok!r}" if tok else
-                           "expected DATA or END-ISO-10303-21, found end of file", start,
-                           ("DATA", "END-ISO-10303-21;"))
-        return None
+            return None
+        if self.lenient and self.text.startswith("END-ISO-10303-21", start):
+            self._diagnose("P21-MISSING-SEMICOLON", start, None, "';' missing after END-ISO-10303-21; read as present")
+            return None
+        if kind == "eof" and self.lenient:
+            if not self._truncated:
+                self._diagnose("P21-END-MISSING", start, None,
+                               "the file ends without 'END-ISO-10303-21;'; everything before it is loaded")
+            return None
+        raise _Failure(f"expected DATA or END-ISO-10303-21, found {show(tok)}" if tok else
+                       "expected DATA or END-ISO-10303-21, found end of file", start,
+                       ("DATA", "END-ISO-10303-21;"))
 
     def instances(self) -> Iterator[Instance]:
         """Yield every instance of every DATA section, in file order."""
         pos = self._pos
         while True:
-            try:
-                section = self._section_start(pos)
-            except _Failure as failure:
-                raise self._syntax_error(failure, None) from None
+            section = self._next_section(pos)
             if section is None:
                 return
             pos = yield from self._data_section(section, len(self.header.data_sections) - 1)
+
+    def _next_section(self, pos: int) -> int | None:
+        """The offset after the next section opener; None at the end of the file.
+
+        Lenient: text where a section should start is skipped (and reported) up to
+        the next instance or section keyword; an instance found there is read into
+        the preceding DATA section.
+        """
+        while True:
+            try:
+                return self._section_start(pos)
+            except _Failure as failure:
+                if not self.lenient:
+                    raise self._syntax_error(failure, None) from None
+                stop, message = failure.pos, failure.message
+            kind, tok, start, _ = self._token(stop)
+            if kind == "ref" and _INSTANCE_START.match(self.text, start):
+                self._diagnose("P21-OUTSIDE-SECTION", start, int(tok[1:]),
+                               "instance outside a DATA section; read into the preceding one")
+                if not self.header.data_sections:
+                    self.header.data_sections.append([])
+                    self.header.data_section_texts.append("DATA;")
+                return start
+            m = _RESUME.search(self.text, stop + 1)
+            skipped = self.text[stop: m.start() if m else len(self.text)].strip()
+            if skipped:
+                self._diagnose("P21-SYNTAX", stop, None, f"{message}; {len(skipped)} characters skipped")
+            if m is None:
+                self._truncated = True  # reported: no end-marker warning on top
+                return None
+            pos = m.start()
 
     def _data_section(self, pos: int, index: int) -> Generator[Instance, None, int]:
         while True:
             kind, tok, start, end = self._token(pos)
             if kind == "kw" and tok.upper() == "ENDSEC":
-                try:
-                    return self._expect(end, ";")
-                except _Failure as failure:
-                    raise self._syntax_error(failure, None) from None
+                return self._end_of_section(end)
             if kind == "p" and tok == "(" and self.lenient and self.text.startswith("(*", start):
                 close = self.text.find("*)", start + 2)
                 if close >= 0:
                     self._diagnose("P21-EXPRESS-REMARK", start, None, "EXPRESS remark between instances skipped")
                     pos = close + 2
                     continue
+            if kind == "eof":
+                if not self.lenient:
+                    raise self._syntax_error(_Failure("unexpected end of file in DATA section", start, ("ENDSEC",)),
+                                             None)
+                if not self._truncated:
+                    self._truncate(start, None)
+                return start
             p21_id = int(tok[1:]) if kind == "ref" else None
+            first = len(self.diagnostics)
             try:
-                if kind == "eof":
-                    raise _Failure("unexpected end of file in DATA section", start, ("ENDSEC",))
                 if p21_id is None:
                     raise self._bad_token(kind, tok, start, ("#id", "ENDSEC"))
                 instance, pos = self._instance(p21_id, start, end)
             except _Failure as failure:
                 if not self.lenient:
                     raise self._syntax_error(failure, p21_id) from None
-                pos = self._recover(failure, p21_id, start)
+                broken, pos = self._recover(failure, p21_id, start)
+                if broken is not None:
+                    broken.section = index
+                    yield broken
                 continue
+            instance.repaired = len(self.diagnostics) > first
             self.defined += 1
             if instance.id in self._ids:
                 message = f"#{instance.id} is defined again; this later definition is not loaded"
                 if not self.lenient:
                     raise self._syntax_error(_Failure(message, start, ()), instance.id)
                 self._diagnose("P21-DUPLICATE-ID", start, instance.id, message)
+                self.duplicate_texts.append((instance.id, start, instance.end))
                 continue
             self._ids.add(instance.id)
             instance.section = index
             yield instance
+
+    def _end_of_section(self, end: int) -> int:
+        """After ``ENDSEC``: its ``;`` (lenient: a missing one is reported and assumed)."""
+        try:
+            return self._expect(end, ";")
+        except _Failure as failure:
+            if not self.lenient:
+                raise self._syntax_error(failure, None) from None
+            self._diagnose("P21-MISSING-SEMICOLON", end, None, "';' missing after ENDSEC; read as present")
+            return end
+
+    def _truncate(self, offset: int, p21_id: int | None) -> None:
+        """Lenient: the file ends inside a DATA section (or inside instance ``p21_id``)."""
+        self._truncated = True
+        inside = f"inside #{p21_id}, which is kept as text; " if p21_id is not None else "inside a DATA section; "
+        self._diagnose("P21-TRUNCATED", offset, p21_id,
+                       f"the file ends {inside}it looks cut short (ENDSEC; and END-ISO-10303-21; are missing); "
+                       "everything before this point is loaded")
 
     def _instance(self, p21_id: int, start: int, pos: int) -> tuple[Instance, int]:
         pos = self._expect(pos, "=")
@@ -483,38 +571,69 @@ class Part21Reader:
                     pos = tend
                     break
                 if kind != "kw":
-                    raise _Failure(f"expected an entity name or ')' in a complex instance, found {tok!r}", tstart,
+                    raise _Failure(f"expected an entity name or ')' in a complex instance, found {show(tok)}", tstart,
                                    ("entity name", ")"))
                 part_params, pos = self._params(tend, p21_id)
                 parts.append((tok.upper(), part_params))
             if not parts:
                 raise _Failure("empty complex instance", tstart, ("entity name",))
         else:
-            raise _Failure(f"expected an entity name or '(', found {tok!r}", tstart, ("entity name", "("))
+            raise _Failure(f"expected an entity name or '(', found {show(tok)}", tstart, ("entity name", "("))
         kind, tok, tstart, tend = self._token(pos)
         if tok == ";":
             end = tend
-        elif self.lenient and kind == "ref" and _INSTANCE_START.match(self.text, tstart):
-            self._diagnose("P21-MISSING-SEMICOLON", pos, p21_id, "';' missing after the instance; read as present")
-            end = pos
-        elif self.lenient and kind == "kw" and tok.upper() == "ENDSEC":
+        elif self.lenient and (kind == "eof" or (kind == "ref" and _INSTANCE_START.match(self.text, tstart))
+                               or (kind == "kw" and tok.upper() == "ENDSEC")):
             self._diagnose("P21-MISSING-SEMICOLON", pos, p21_id, "';' missing after the instance; read as present")
             end = pos
         else:
-            raise _Failure(f"expected ';', found {tok!r}" if tok else "expected ';', found end of file", tstart,
+            raise _Failure(f"expected ';', found {show(tok)}" if tok else "expected ';', found end of file", tstart,
                            (";",))
         line, column = self.position(start)
         return Instance(p21_id, name, params, line, column, start, end, parts), end
 
-    def _recover(self, failure: _Failure, p21_id: int | None, start: int) -> int:
-        """Report the unreadable instance and return the offset of the next statement."""
-        line, column = self.position(failure.pos)
-        where = f" at line {line}, column {column}" if failure.pos != start else ""
+    def _recover(self, failure: _Failure, p21_id: int | None, start: int) -> tuple[Instance | None, int]:
+        """Report what could not be read; return it as an unreadable instance (when it has
+        an ``#id`` not defined before) and the offset of the next statement."""
+        m = _NEXT_STATEMENT.search(self.text, max(failure.pos, start + 1))
+        resume = m.start() if m else len(self.text)
+        at_end = m is None  # nothing readable follows: the file stops inside this statement
         if p21_id is not None:
             self.defined += 1
-        self._diagnose("P21-SYNTAX", start, p21_id, f"{failure.message}{where}; instance not loaded")
-        m = _NEXT_STATEMENT.search(self.text, max(failure.pos, start + 1))
-        return m.start() if m else len(self.text)
+        if at_end:  # the file stops inside this statement
+            self._truncate(start, p21_id)
+        else:
+            line, column = self.position(failure.pos)
+            where = f" at line {line}, column {column}" if failure.pos != start else ""
+            kept = "; kept as text" if p21_id is not None and p21_id not in self._ids else "; not loaded"
+            self._diagnose("P21-SYNTAX", start, p21_id, f"{failure.message}{where}{kept}")
+        if p21_id is None:
+            return None, resume
+        end = start + len(self.text[start:resume].rstrip())
+        if p21_id in self._ids:
+            self.duplicate_texts.append((p21_id, start, end))
+            return None, resume
+        self._ids.add(p21_id)
+        named = _ENTITY_NAME.match(self.text, start)
+        line, column = self.position(start)
+        return Instance(p21_id, named.group(1).upper() if named else None, [], line, column, start, end,
+                        unreadable=failure.message), resume
+
+
+def defined_ids(text: str) -> set[int]:
+    """The ``#id``s a file's text defines (``#12=``), not counting text in comments.
+
+    The loader needs the set before reading (references point forward as well
+    as back) to tell an unresolved reference. Comments are left out because
+    the writer keeps unreadable instances in comments; strings are not, since a
+    damaged string (a typographic closing quote) would hide every definition up
+    to the next quote. Linear: only openers before the last ``*/`` are matched
+    as comments, so an unclosed ``/*`` never makes the regex rescan the tail.
+    """
+    if "/*" in text:
+        closed = text.rfind("*/") + 2
+        text = _COMMENT.sub(" ", text[:closed]) + text[closed:] if closed > 1 else text
+    return {int(x) for x in _DEFINITION.findall(text)}
 
 
 def read_text(text: str, filename: str = "<string>", lenient: bool = False) -> Part21Reader:
@@ -523,10 +642,9 @@ def read_text(text: str, filename: str = "<string>", lenient: bool = False) -> P
 
 
 def read_file(path: str | Path, lenient: bool = False) -> Part21Reader:
-    """Read ``path``: UTF-8, falling back to ISO 8859-1 for files that are not UTF-8."""
-    raw = Path(path).read_bytes()
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return Part21Reader(text, str(path), lenient)
+    """Read ``path``: UTF-8 where it is UTF-8, other bytes as ISO 8859-1, each reported
+    (see :mod:`stepnc_graph.part21.source`)."""
+    text, _, encoding = read_text_source(path)
+    reader = Part21Reader(text, str(path), lenient)
+    reader.diagnostics[:0] = encoding
+    return reader
