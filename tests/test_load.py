@@ -451,7 +451,8 @@ def test_failure_mid_load_leaves_store_unchanged(tmp_path: Path, monkeypatch: py
         sg.load(store, [EXAMPLE])
     assert _snapshot(store) == before
     if not memory:
-        assert not (tmp_path / "store" / "journal").exists()
+        store.close()
+        assert not (tmp_path / "store" / "work.dirty").exists()
 
 
 def test_strict_syntax_error_late_in_file_leaves_store_unchanged(tmp_path: Path) -> None:
@@ -470,7 +471,7 @@ def test_killed_load_is_rolled_back_on_next_open(tmp_path: Path) -> None:
     store = sg.open_store(store_dir)
     sg.load(store, [EXAMPLE])
     before = _snapshot(store)
-    del store
+    store.close()
     script = f"""
 import os, stepnc_graph as sg
 from stepnc_graph.mapping import mapper
@@ -488,10 +489,11 @@ sg.load(sg.open_store({str(store_dir)!r}), [{str(EXAMPLE)!r}])
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert done.returncode == 9, done.stderr
-    assert (store_dir / "journal").exists()  # the interrupted load left its journal
+    assert (store_dir / "work.dirty").exists()  # the interrupted load left work/ marked
+    assert _snapshot(sg.open_store(store_dir, readonly=True)) == before  # readers never saw it
     reopened = sg.open_store(store_dir)
     assert _snapshot(reopened) == before
-    assert not (store_dir / "journal").exists()
+    assert not (store_dir / "work.dirty").exists()
 
 
 # -- export ------------------------------------------------------------------------------------------
@@ -596,7 +598,7 @@ def test_cli_load_json_and_exit_codes(tmp_path: Path) -> None:
 def test_store_env_var_and_not_a_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("STEPNC_GRAPH_STORE", str(tmp_path / "envstore"))
     res = CliRunner().invoke(main, ["load", str(EXAMPLE)])
-    assert res.exit_code == 0 and (tmp_path / "envstore" / "oxigraph").is_dir()
+    assert res.exit_code == 0 and (tmp_path / "envstore" / "CURRENT").is_file()
     other = tmp_path / "other"
     other.mkdir()
     (other / "precious.txt").write_text("x")

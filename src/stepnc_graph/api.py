@@ -9,22 +9,34 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from stepnc_graph.export import export
 from stepnc_graph.loader import LoadResult, Progress, load_file
-from stepnc_graph.naming import P21_NS, default_graph_iri, instance_prefix
-from stepnc_graph.store import GraphStore, default_store_path
+from stepnc_graph.naming import P21_NS, default_graph_iri, derived_graph_iri, instance_prefix
+from stepnc_graph.store import GraphStore, StoreBusy, StoreError, Writer, default_store_path
 
-__all__ = ["GraphInfo", "LoadResult", "export", "graph_iri_for", "info", "load", "open_store", "unload"]
+__all__ = ["GraphInfo", "LoadResult", "StoreBusy", "StoreError", "export", "graph_iri_for", "info", "load",
+           "open_store", "unload"]
 
 
-def open_store(path: str | Path | None = None, memory: bool = False) -> GraphStore:
-    """The on-disk store at ``path`` (default: ``$STEPNC_GRAPH_STORE`` or ``./.stepnc-graph``), or an in-memory one."""
-    return GraphStore(None if memory else (path or default_store_path()))
+def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,
+               create: bool | None = None, wait: bool | float = False,
+               on_wait: Callable[[Writer], None] | None = None) -> GraphStore:
+    """The on-disk store at ``path`` (default: ``$STEPNC_GRAPH_STORE`` or ``./.stepnc-graph``), or an in-memory one.
+
+    A store opened for writing (the default) holds the store's writer lock until
+    it is closed (use ``with``); another writer gets :class:`StoreBusy`, or waits
+    with ``wait``. ``readonly=True`` reads the last published state without
+    blocking anyone and never creates a store (``create`` defaults to ``not readonly``).
+    """
+    if memory:
+        return GraphStore(None)
+    return GraphStore(path or default_store_path(), readonly=readonly,
+                      create=not readonly if create is None else create, wait=wait, on_wait=on_wait)
 
 
 def graph_iri_for(path: str | Path, base_iri: str | None, several: bool) -> str:
@@ -50,8 +62,8 @@ def load(store: GraphStore, paths: Iterable[str | Path], *, lenient: bool = Fals
 
 
 def unload(store: GraphStore, graph: str) -> bool:
-    """Remove a file's graph; False if there was none."""
-    return store.remove_graph(graph)
+    """Remove a file's graph (with its derived layer); False if there was none."""
+    return store.remove_graph(graph, companions=(derived_graph_iri(graph),))
 
 
 @dataclass(frozen=True)
@@ -72,10 +84,17 @@ def _int(value: str | None) -> int | None:
     return int(value) if value is not None else None
 
 
+def program_graphs(store: GraphStore) -> list[str]:
+    """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary,
+    derived layers or other graphs a user added."""
+    rows = store.query(f"SELECT DISTINCT ?g WHERE {{ GRAPH ?g {{ ?g a <{P21_NS}ExchangeStructure> }} }}")
+    return sorted(row[0].value for row in rows)
+
+
 def info(store: GraphStore) -> list[GraphInfo]:
-    """The graphs in the store with what their load recorded."""
+    """The loaded files' graphs in the store with what their load recorded."""
     out = []
-    for g in store.graphs():
+    for g in program_graphs(store):
         rows = list(store.query(
             f"PREFIX p21: <{P21_NS}> PREFIX dcterms: <http://purl.org/dc/terms/> "
             f"PREFIX prov: <http://www.w3.org/ns/prov#> SELECT ?src ?n ?raw ?d ?t WHERE {{ GRAPH <{g}> {{ "

@@ -21,7 +21,15 @@ from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
 from stepnc_graph.mapping.plan import P21_DUPLICATE_TEXT, iso14649_plans
-from stepnc_graph.naming import P21_NS, TOOL_IRI, alias_iri, default_graph_iri, instance_prefix, section_iri
+from stepnc_graph.naming import (
+    P21_NS,
+    TOOL_IRI,
+    alias_iri,
+    default_graph_iri,
+    derived_graph_iri,
+    instance_prefix,
+    section_iri,
+)
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source
@@ -280,7 +288,7 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
         store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")
         job.result.triples += 1
 
-    store.replace_graph(job.graph, job.chunks(), before_commit)
+    store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))
     job.result.seconds = time.perf_counter() - job.started
     return job.result
