@@ -462,7 +462,7 @@ def test_strict_syntax_error_late_in_file_leaves_store_unchanged(tmp_path: Path)
     damaged = tmp_path / "shaft_two_setups.stp"  # same name: would replace the graph
     damaged.write_text(EXAMPLE.read_text().replace("#292=DIRECTION('-Z',(0.,0.,-1.));", "#292=DIRECTION('-Z',(0.,,);"))
     with pytest.raises(Part21SyntaxError):
-        sg.load(store, [damaged])
+        sg.load(store, [damaged], replace=True)
     assert _snapshot(store) == before
 
 
@@ -592,7 +592,7 @@ def test_cli_load_json_and_exit_codes(tmp_path: Path) -> None:
     assert runner.invoke(main, ["export", "--store", store, "--format", "ttl"]).exit_code == 2  # two graphs
     gone = runner.invoke(main, ["unload", "--store", store, "https://w3id.org/stepnc-graph/data/shaft_two_setups.stp"])
     assert gone.exit_code == 0
-    assert runner.invoke(main, ["unload", "--store", store, "urn:nope"]).exit_code == 1
+    assert runner.invoke(main, ["unload", "--store", store, "urn:nope"]).exit_code == 2  # like export --graph
 
 
 def test_store_env_var_and_not_a_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -15,12 +15,13 @@ from pathlib import Path
 from typing import Any
 
 from stepnc_graph.export import export
-from stepnc_graph.loader import LoadResult, Progress, load_file
-from stepnc_graph.naming import P21_NS, default_graph_iri, derived_graph_iri, instance_prefix
+from stepnc_graph.loader import LoadResult, Progress, load_source
+from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
+from stepnc_graph.naming import P21_NS, derived_graph_iri
 from stepnc_graph.store import GraphStore, StoreBusy, StoreError, Writer, default_store_path
 
-__all__ = ["GraphInfo", "LoadResult", "StoreBusy", "StoreError", "export", "graph_iri_for", "info", "load",
-           "open_store", "unload"]
+__all__ = ["GraphInfo", "LoadResult", "SourceError", "StoreBusy", "StoreError", "export", "info",
+           "load", "open_store", "unload"]
 
 
 def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,
@@ -39,26 +40,21 @@ def open_store(path: str | Path | None = None, memory: bool = False, *, readonly
                       create=not readonly if create is None else create, wait=wait, on_wait=on_wait)
 
 
-def graph_iri_for(path: str | Path, base_iri: str | None, several: bool) -> str:
-    """The graph IRI of a file: ``base_iri`` itself for one file; with several files it
-    is a prefix to which each file name is added; by default derived from the name."""
-    if base_iri is None:
-        return default_graph_iri(str(path))
-    if several:
-        return instance_prefix(base_iri) + Path(path).name
-    return base_iri
-
-
 def load(store: GraphStore, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
-         progress: Progress | None = None) -> list[LoadResult]:
-    """Load each file into its own named graph (replacing an earlier load of it).
+         progress: Progress | None = None, replace: bool = False) -> list[LoadResult]:
+    """Load each file (a directory: every Part 21 file under it; ``-``: standard input)
+    into its own named graph, replacing an earlier load of the same file.
 
-    A file that does not parse in strict mode raises Part21SyntaxError; files
-    before it stay loaded, the store is unchanged for that file.
+    Graph IRIs are planned first (:func:`stepnc_graph.sources.plan_sources`):
+    two inputs that would share a graph, or a graph already holding another
+    file (unless ``replace``), raise :class:`~stepnc_graph.sources.SourceError`
+    before anything is written. A file that does not parse in strict mode raises
+    Part21SyntaxError; files before it stay loaded, the store is unchanged for it.
     """
-    files = list(paths)
-    return [load_file(store, p, lenient=lenient, base_iri=graph_iri_for(p, base_iri, len(files) > 1),
-                      progress=progress) for p in files]
+    sources = plan_sources(list(paths), base_iri)
+    if not replace:
+        refuse_replacing_other_files(store, sources)
+    return [load_source(store, s, lenient=lenient, progress=progress) for s in sources]
 
 
 def unload(store: GraphStore, graph: str) -> bool:

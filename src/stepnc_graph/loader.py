@@ -32,7 +32,8 @@ from stepnc_graph.naming import (
 )
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
-from stepnc_graph.part21.source import decode_source, read_source
+from stepnc_graph.part21.source import decode_source, read_source, read_stdin
+from stepnc_graph.sources import Source
 from stepnc_graph.store import GraphStore
 
 DCT = "http://purl.org/dc/terms/"
@@ -273,10 +274,20 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
     """Load one Part 21 file as the named graph ``base_iri`` (default: from the file name).
 
     Raises :class:`~stepnc_graph.part21.Part21SyntaxError` in strict mode when
-    the file does not parse; the store is then unchanged. Loading the same file
-    again replaces its graph.
+    the file does not parse (and ``OSError`` when it cannot be read); the store
+    is then unchanged. Loading the same file again replaces its graph.
     """
-    job = _Load.of_file(path, lenient, base_iri, progress)
+    return _run(store, _Load.of_file(path, lenient, base_iri, progress))
+
+
+def load_source(store: GraphStore, source: Source, *, lenient: bool = False,
+                progress: Progress | None = None) -> LoadResult:
+    """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input."""
+    raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
+    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress))
+
+
+def _run(store: GraphStore, job: _Load) -> LoadResult:
     extra: list[Diagnostic] = []
 
     def before_commit(target: Callable[[str], str]) -> None:

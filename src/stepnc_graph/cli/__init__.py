@@ -15,12 +15,12 @@ import click
 
 from stepnc_graph import __version__
 from stepnc_graph.cli import ontology, schema, store
-from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_NONCONFORMING, EXIT_OK
+from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NONCONFORMING, EXIT_OK, Group
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_NONCONFORMING", "EXIT_OK", "main"]
+__all__ = ["EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "EXIT_NONCONFORMING", "EXIT_OK", "main"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="stepnc-graph")
 def main() -> None:
     """STEP-NC (ISO 14649) process data as a knowledge graph.
@@ -28,7 +28,8 @@ def main() -> None:
     The EXPRESS schemas of ISO 14649 are compiled to an OWL vocabulary;
     Part 21 programs become RDF you can query with SPARQL and check with SHACL.
 
-    Exit codes: 0 ok, 1 non-conforming data, 2 bad input or usage.
+    Exit codes: 0 ok, 1 non-conforming data, 2 bad input or usage,
+    130 interrupted (Ctrl-C).
     """
 
 

@@ -2,11 +2,15 @@
 
 The CLI is the only part of stepnc-graph that prints. Each command group is a
 module of this package that calls the Python API; this module holds the few
-pieces they all need, so the commands stay thin and print errors alike.
+pieces they all need, so the commands stay thin and report errors alike: a
+user error (bad input, bad usage, a store that cannot be used) is one line on
+standard error -- or a JSON object on standard output under ``--format json``
+-- and exit code 2, never a traceback.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from collections.abc import Callable
@@ -15,55 +19,129 @@ from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
 import click
 from rich.console import Console
+from rich.markup import escape
 
 if TYPE_CHECKING:
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store import GraphStore, Writer
 
 EXIT_OK, EXIT_NONCONFORMING, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
 
 out = Console(highlight=False, soft_wrap=True)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 
 
+class UsageProblem(Exception):
+    """A request the command cannot carry out as given (exit 2)."""
+
+
+def error_record(exc: BaseException) -> dict[str, Any]:
+    """A JSON-ready view of an error: positioned errors give their own ``asdict()``."""
+    if hasattr(exc, "asdict"):
+        return exc.asdict()  # type: ignore[no-any-return]
+    record: dict[str, Any] = {"type": type(exc).__name__, "message": error_text(exc)}
+    if isinstance(exc, OSError) and exc.filename:
+        record["file"] = str(exc.filename)
+    return record
+
+
+def error_text(exc: BaseException) -> str:
+    """The one-line (or positioned, with a caret) text of an error for a person."""
+    if isinstance(exc, OSError) and exc.strerror and exc.filename:
+        return f"{exc.filename}: {exc.strerror}"
+    return str(exc)
+
+
+def print_error(exc: BaseException, hint: str = "") -> None:
+    """``error: ...`` on standard error; file content in the message is never read as markup."""
+    err.print(f"[bold red]error:[/] {escape(error_text(exc))}" + (f"\n[dim]{escape(hint)}[/]" if hint else ""))
+
+
+def fail(errors: list[BaseException], fmt: str = "text") -> NoReturn:
+    """Report input errors and exit 2."""
+    if fmt == "json":
+        click.echo(json.dumps({"ok": False, "errors": [error_record(e) for e in errors]}, indent=2))
+    else:
+        for e in errors:
+            print_error(e)
+    sys.exit(EXIT_BAD_INPUT)
+
+
 def fail_input(exc: Exception, fmt: str = "text") -> NoReturn:
-    """Report a positioned input error (or several) and exit 2."""
+    """Report a positioned input error (or several, for SchemaErrors) and exit 2."""
     from stepnc_graph.schema import SchemaErrors
 
-    errors = exc.errors if isinstance(exc, SchemaErrors) else [exc]
-    if fmt == "json":
-        click.echo(json.dumps({"ok": False, "errors": [e.asdict() for e in errors]}, indent=2))  # type: ignore[attr-defined]
-    else:
-        err.print(f"[bold red]error:[/] {exc}", markup=True)
-    sys.exit(EXIT_BAD_INPUT)
+    fail(list(exc.errors) if isinstance(exc, SchemaErrors) else [exc], fmt)
+
+
+def user_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions that mean bad input or usage, not a bug (imported when needed)."""
+    from stepnc_graph.export import ExportError
+    from stepnc_graph.part21 import Part21SyntaxError
+    from stepnc_graph.sources import SourceError
+    from stepnc_graph.store import StoreError
+
+    return (UsageProblem, StoreError, SourceError, ExportError, Part21SyntaxError, OSError, UnicodeError)
+
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def reports_errors(f: F) -> F:
+    """Turn a user error raised by the command into one message and exit 2 (JSON with --format json)."""
+
+    @functools.wraps(f)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return f(*args, **kwargs)
+        except user_errors() as exc:
+            fmt = kwargs.get("fmt")
+            fail([exc], "json" if fmt == "json" else "text")
+
+    return wrapper  # type: ignore[return-value]
 
 
 root_option = click.option(
     "--root", type=click.Path(file_okay=False, path_type=Path), default=None,
     help="Project root holding ontology/express/ (default: this checkout, or the installed data).")
 
-_store_options = [
-    click.option("--store", "store_path", type=click.Path(file_okay=False, path_type=Path), default=None,
-                  help="Store directory (default: $STEPNC_GRAPH_STORE, else ./.stepnc-graph)."),
-    click.option("--memory", is_flag=True, help="Use a throw-away in-memory store."),
-]
-
-F = TypeVar("F", bound=Callable[..., Any])
+store_option = click.option(
+    "--store", "store_path", type=click.Path(path_type=Path), default=None,
+    help="Store directory (default: $STEPNC_GRAPH_STORE, else ./.stepnc-graph).")
+memory_option = click.option("--memory", is_flag=True, help="Use a throw-away in-memory store.")
+wait_option = click.option(
+    "--wait", is_flag=True,
+    help="If another process is writing to the store, wait for it instead of failing (exit 2).")
 
 
 def with_store(f: F) -> F:
-    """Add the --store / --memory options every store command shares."""
-    for option in reversed(_store_options):
-        f = option(f)
-    return f
+    """``--store`` and ``--memory``: for commands that can work on a throw-away store."""
+    return store_option(memory_option(f))
 
 
-def open_store(store_path: Path | None, memory: bool) -> GraphStore:
-    """The store the options name; a store that cannot be opened exits 2 with a message."""
-    from stepnc_graph.api import open_store as api_open_store
-    from stepnc_graph.store import StoreError
+def open_writer(store_path: Path | None, memory: bool = False, wait: bool = False) -> GraphStore:
+    """The store, opened for writing (created if need be); it is busy: exit 2, or wait with a note."""
+    from stepnc_graph.api import open_store
 
-    try:
-        return api_open_store(store_path, memory)
-    except StoreError as exc:
-        err.print(f"[bold red]error:[/] {exc}")
-        sys.exit(EXIT_BAD_INPUT)
+    def waiting(writer: Writer) -> None:
+        err.print(f"waiting for the store's writer ({escape(str(writer))}) to finish ...")
+
+    return open_store(store_path, memory, wait=wait, on_wait=waiting)
+
+
+def open_reader(store_path: Path | None) -> GraphStore:
+    """The store's last published state, read-only; never created, never waits for a writer."""
+    from stepnc_graph.api import open_store
+
+    return open_store(store_path, readonly=True)
+
+
+class Group(click.Group):
+    """The CLI's groups: Ctrl-C exits 130 (scripts read 1 as "non-conforming data")."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            err.print("interrupted")
+            sys.exit(EXIT_INTERRUPTED)

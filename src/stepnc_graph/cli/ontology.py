@@ -69,14 +69,14 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
     else:
         table = Table(title="ISO 14649 ontology coverage (EXPRESS / OWL)")
         for col in ("schema", "entities", "types", "attributes", "complete"):
-            table.add_column(col, justify="left" if col == "schema" else "right")
+            table.add_column(col, justify="left" if col == "schema" else "right", no_wrap=True)
         for r in rows:
             table.add_row(r.schema, f"{r.express_entities} / {r.owl_entities}", f"{r.express_types} / {r.owl_types}",
                           f"{r.express_attributes} / {r.owl_attributes}", "yes" if r.complete else "NO")
         table.add_row("total", *(f"{sum(getattr(r, 'express_' + k) for r in rows)} / "
                                  f"{sum(getattr(r, 'owl_' + k) for r in rows)}"
                                  for k in ("entities", "types", "attributes")), "yes" if complete else "NO")
-        out.print(table)
+        out.print(table, width=None if out.is_terminal else 200)  # piped: never cut a schema name
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
 
 

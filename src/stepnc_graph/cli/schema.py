@@ -17,7 +17,7 @@ from stepnc_graph.schema import SchemaError, build_model
 
 @click.group()
 def schema() -> None:
-    """Check EXPRESS schema files."""
+    """Check EXPRESS schema files (check) and look up entities of the shipped schemas (entity)."""
 
 
 @schema.command("check")

@@ -1,4 +1,10 @@
-"""`stepnc-graph load | export | unload | info`: Part 21 programs in the store."""
+"""`stepnc-graph load | export | unload | info`: Part 21 programs in the store.
+
+``load`` and ``unload`` write: they take the store's writer lock (another
+writer fails with exit 2, or waits with ``--wait``). ``export`` and ``info``
+read the last published state: they work during a load, never create a store
+and never wait.
+"""
 
 from __future__ import annotations
 
@@ -8,160 +14,230 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
-from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+from rich.markup import escape
 
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_NONCONFORMING,
     EXIT_OK,
+    UsageProblem,
     err,
-    open_store,
+    error_record,
+    open_reader,
+    open_writer,
     out,
+    print_error,
+    reports_errors,
+    store_option,
+    wait_option,
     with_store,
 )
 
 if TYPE_CHECKING:
+    from rich.progress import Progress
+
     from stepnc_graph.loader import LoadResult
-    from stepnc_graph.part21 import Part21SyntaxError
+    from stepnc_graph.sources import Source
     from stepnc_graph.store import GraphStore
 
-
-def _progress_bar() -> Progress:
-    return Progress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
-                    TimeRemainingColumn(), console=err, transient=True)
+_COLOURS = {"error": "red", "warning": "yellow"}
 
 
 @click.command("load")
-@click.argument("files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(allow_dash=True, path_type=str))
 @with_store
+@wait_option
 @click.option("--lenient", is_flag=True,
               help="Recover from syntax errors instance by instance and report them, instead of stopping.")
 @click.option("--base-iri", default=None,
-              help="IRI of the file's named graph (instances are <IRI>/i<id>); with several files, a prefix "
-                   "to which each file name is added. Default: https://w3id.org/stepnc-graph/data/<file name>.")
+              help="IRI of the file's named graph (instances are <IRI>/i<id>); with several files or a directory, "
+                   "a prefix to which each file's name (relative path) is added. Default: "
+                   "https://w3id.org/stepnc-graph/data/<file name>. Required for standard input (-).")
+@click.option("--replace", is_flag=True,
+              help="Replace a graph even when it holds a different file (same name, other folder).")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
-def load_cmd(files: tuple[Path, ...], store_path: Path | None, memory: bool, lenient: bool,
-             base_iri: str | None, fmt: str) -> None:
-    """Load Part 21 FILES into the store, one named graph per file.
+@reports_errors
+def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, wait: bool, lenient: bool,
+             base_iri: str | None, replace: bool, fmt: str) -> None:
+    """Load Part 21 programs into the store, one named graph per file.
 
-    Loading a file again replaces its graph; a load that fails leaves the store
-    as it was. Schema problems (unknown entity, wrong parameter count or value
-    type, unresolved reference) are reported and the instance is kept raw, so
-    nothing is lost.
+    INPUTS are files, directories (every .stp/.step/.p21 file under them,
+    named by their path relative to the directory) or - for standard input
+    (with --base-iri). Loading a file again replaces its graph; a load that
+    fails leaves the store as it was. Schema problems (unknown entity, wrong
+    parameter count or value type, unresolved reference) are reported and the
+    instance is kept raw, so nothing is lost.
 
     Exit codes: 0 loaded cleanly, 1 loaded with diagnostics, 2 a file could not
-    be loaded (syntax error in strict mode) or bad usage.
+    be loaded (syntax error in strict mode, unreadable) or bad usage.
     """
-    with open_store(store_path, memory) as store:
-        results, failures = _load_all(store, files, lenient, base_iri, fmt)
+    from stepnc_graph.sources import plan_sources, refuse_replacing_other_files
+
+    sources = plan_sources(inputs, base_iri)
+    with open_writer(store_path, memory, wait) as store:
+        if not replace:
+            refuse_replacing_other_files(store, sources)
+        results, failures = _load_all(store, sources, lenient, fmt)
     _report_loads(results, failures, fmt)
 
 
-def _load_all(store: GraphStore, files: tuple[Path, ...], lenient: bool, base_iri: str | None,
-              fmt: str) -> tuple[list[LoadResult], list[Part21SyntaxError]]:
-    from stepnc_graph.api import graph_iri_for
-    from stepnc_graph.loader import load_file
-    from stepnc_graph.part21 import Part21SyntaxError
+def _load_all(store: GraphStore, sources: list[Source], lenient: bool,
+              fmt: str) -> tuple[list[LoadResult], list[BaseException]]:
+    """Load each source in turn; a file that fails is reported and the others go on."""
+    from stepnc_graph.cli.common import user_errors
+    from stepnc_graph.loader import load_source
 
     results: list[LoadResult] = []
-    failures: list[Part21SyntaxError] = []
-    for path in files:
-        graph = graph_iri_for(path, base_iri, len(files) > 1)
-        big = path.stat().st_size > (1 << 20) and err.is_terminal and fmt == "text"
-        try:
-            if big:
-                with _progress_bar() as bar:
-                    task = bar.add_task(f"loading {path.name}", total=path.stat().st_size)
-                    def advance(done: int, total: int, task: Any = task) -> None:
-                        bar.update(task, completed=done, total=total)
+    failures: list[BaseException] = []
+    sizes = [_size(s) for s in sources]
+    with _progress(sum(sizes), fmt) as bar:
+        task = bar.add_task("loading", total=sum(sizes)) if bar is not None else None
+        done = 0
+        for source, size in zip(sources, sizes, strict=True):
+            def advance(position: int, total: int, base: int = done, size: int = size,
+                        label: str = f"loading {Path(source.name).name}") -> None:
+                if bar is not None and task is not None:
+                    bar.update(task, completed=base + position * size // max(total, 1), description=label)
 
-                    results.append(load_file(store, path, lenient=lenient, base_iri=graph, progress=advance))
-            else:
-                results.append(load_file(store, path, lenient=lenient, base_iri=graph))
-        except Part21SyntaxError as exc:
-            failures.append(exc)
-            if fmt == "text":
-                err.print(f"[bold red]error:[/] {exc}\n[dim]nothing loaded from {path}; "
-                          f"--lenient loads what can be read[/]")
+            try:
+                results.append(load_source(store, source, lenient=lenient, progress=advance))
+            except user_errors() as exc:
+                failures.append(exc)
+                if fmt == "text":
+                    hint = (f"nothing loaded from {source.name}; --lenient loads what can be read"
+                            if getattr(exc, "recoverable", False) and not lenient
+                            else f"nothing loaded from {source.name}")
+                    print_error(exc, hint)
+            done += size
     return results, failures
 
 
-def _report_loads(results: list[LoadResult], failures: list[Part21SyntaxError], fmt: str) -> NoReturn:
+def _size(source: Source) -> int:
+    try:
+        return source.path.stat().st_size if source.path is not None else 0
+    except OSError:
+        return 0
+
+
+class _NoBar:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+
+def _progress(total: int, fmt: str) -> Any:
+    """A progress bar over all files (bytes read), on a terminal, for loads worth one."""
+    if total < (1 << 20) or fmt != "text" or not err.is_terminal:
+        return _NoBar()
+    from rich.progress import BarColumn, DownloadColumn, TimeRemainingColumn
+    from rich.progress import Progress as RichProgress
+
+    bar: Progress = RichProgress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
+                                 TimeRemainingColumn(), console=err, transient=True)
+    return bar
+
+
+def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt: str) -> NoReturn:
     if fmt == "json":
-        doc = {"files": [r.asdict() for r in results], "errors": [e.asdict() for e in failures]}
+        doc = {"files": [r.asdict() for r in results], "errors": [error_record(e) for e in failures]}
         click.echo(json.dumps(doc, indent=2))
     else:
         for r in results:
             errors = sum(d.severity == "error" for d in r.diagnostics)
-            out.print(f"loaded {r.path} -> {r.graph}\n  {r.instances} instances ({r.raw} kept raw), "
+            raw = f" ({r.raw} kept raw{f', {r.unreadable} unreadable' if r.unreadable else ''})"
+            out.print(f"loaded {escape(r.path)} -> {escape(r.graph)}\n  {r.instances} instances{raw}, "
                       f"{r.triples} triples, {len(r.diagnostics)} diagnostics ({errors} errors) in {r.seconds:.2f} s")
             for d in r.diagnostics:
-                colour = {"error": "red", "warning": "yellow"}.get(d.severity, "blue")
                 ident = f" #{d.p21_id}" if d.p21_id is not None else ""
-                out.print(f"  [{colour}]{d.severity}[/] {d.line}:{d.column}{ident} {d.code}: {d.message}",
-                          markup=True, highlight=False)
+                out.print(f"  [{_COLOURS.get(d.severity, 'blue')}]{d.severity}[/] {d.line}:{d.column}{ident} "
+                          f"{d.code}: {escape(d.message)}")
     if failures:
         sys.exit(EXIT_BAD_INPUT)
     sys.exit(EXIT_NONCONFORMING if any(r.diagnostics for r in results) else EXIT_OK)
 
 
+def _check_graph(graph: str | None, what: str = "--graph") -> None:
+    if graph is not None:
+        from stepnc_graph.sources import check_iri
+
+        check_iri(graph, what)
+
+
 @click.command("export")
-@with_store
+@store_option
 @click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
                                             "or the only one.")
 @click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "p21"]), required=True,
               help="p21 writes the graph back as a Part 21 file.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write here instead of standard output.")
-def export_cmd(store_path: Path | None, memory: bool, graph: str | None, fmt: str, output: Path | None) -> None:
-    """Export one graph or the whole store as RDF or as Part 21."""
-    from stepnc_graph.export import ExportError, export
+@reports_errors
+def export_cmd(store_path: Path | None, graph: str | None, fmt: str, output: Path | None) -> None:
+    """Export one graph or the whole store as RDF or as Part 21.
 
-    with open_store(store_path, memory) as store:
-        try:
-            data = export(store, fmt, graph)
-        except ExportError as exc:
-            err.print(f"[bold red]error:[/] {exc}")
-            sys.exit(EXIT_BAD_INPUT)
+    Exports are deterministic: the same graph gives the same bytes. Exit 2 for
+    a graph that is not in the store or an output that cannot be written.
+    """
+    from stepnc_graph.export import export
+
+    _check_graph(graph)
+    if output is not None and not output.parent.is_dir():
+        raise UsageProblem(f"-o {output}: the directory {output.parent} does not exist")
+    with open_reader(store_path) as store:
+        data = export(store, fmt, graph)
     if output is None:
         sys.stdout.buffer.write(data)
         sys.stdout.flush()
     else:
         output.write_bytes(data)
-        err.print(f"wrote {output} ({len(data)} bytes)")
+        err.print(f"wrote {escape(str(output))} ({len(data)} bytes)")
 
 
 @click.command("unload")
 @click.argument("graphs", nargs=-1, required=True)
-@with_store
-def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, memory: bool) -> None:
-    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`). Exit 1 if one was absent."""
+@store_option
+@wait_option
+@reports_errors
+def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, wait: bool) -> None:
+    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`).
+
+    The space they took is given back. Exit 2 if a graph is not in the store
+    (the others are still removed).
+    """
     from stepnc_graph.api import unload
 
-    with open_store(store_path, memory) as store:
+    for g in graphs:
+        _check_graph(g, "graph")
+    with open_writer(store_path, wait=wait) as store:
         missing = [g for g in graphs if not unload(store, g)]
     for g in graphs:
-        out.print(f"{'not in the store' if g in missing else 'removed'}: {g}")
-    sys.exit(EXIT_NONCONFORMING if missing else EXIT_OK)
+        if g not in missing:
+            out.print(f"removed: {escape(g)}")
+    if missing:
+        for g in missing:
+            print_error(UsageProblem(f"no graph {g} in the store (see `stepnc-graph info`)"))
+        sys.exit(EXIT_BAD_INPUT)
 
 
 @click.command("info")
-@with_store
+@store_option
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
-def info_cmd(store_path: Path | None, memory: bool, fmt: str) -> None:
-    """List the graphs in the store with their source file and counts."""
+@reports_errors
+def info_cmd(store_path: Path | None, fmt: str) -> None:
+    """List the loaded files' graphs in the store, with their source file and counts."""
     from stepnc_graph.api import info
     from stepnc_graph.store import default_store_path
 
-    with open_store(store_path, memory) as store:
+    with open_reader(store_path) as store:
         rows = info(store)
+        location = store.path
     if fmt == "json":
-        click.echo(json.dumps({"graphs": [r.asdict() for r in rows]}, indent=2))
+        click.echo(json.dumps({"store": str(location), "graphs": [r.asdict() for r in rows]}, indent=2))
         return
-    out.print(f"{len(rows)} graph(s) in {'memory' if memory else store_path or default_store_path()}")
+    out.print(f"{len(rows)} graph(s) in {escape(str((location or default_store_path()).resolve()))}")
     for r in rows:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
-        out.print(f"{r.graph}\n  source {r.source}; {r.instances} instances ({r.raw_instances} raw), "
-                  f"{r.triples} triples, {r.diagnostics} diagnostics; loaded {r.loaded}")
-
-
+        out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
+                  f"({r.raw_instances} raw), {r.triples} triples, {r.diagnostics} diagnostics; loaded {r.loaded}")

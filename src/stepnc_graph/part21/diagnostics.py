@@ -62,13 +62,18 @@ class Diagnostic:
 
 
 class Part21SyntaxError(PositionedSyntaxError):
-    """A Part 21 file that does not parse, with the ``#id`` and what was expected."""
+    """A Part 21 file that does not parse, with the ``#id`` and what was expected.
+
+    ``recoverable`` is true for an error in the DATA sections: lenient reading
+    would report it and go on (the CLI suggests ``--lenient`` only then).
+    """
 
     def __init__(self, message: str, filename: str, line: int, column: int, source_line: str,
-                 p21_id: int | None = None, expected: tuple[str, ...] = ()) -> None:
+                 p21_id: int | None = None, expected: tuple[str, ...] = (), recoverable: bool = False) -> None:
         super().__init__(message, filename, line, column, source_line)
         self.p21_id = p21_id
         self.expected = expected
+        self.recoverable = recoverable
 
     def asdict(self) -> dict[str, Any]:
         return {**super().asdict(), "p21_id": self.p21_id, "expected": list(self.expected)}

@@ -180,10 +180,11 @@ class Part21Reader:
         end = self.text.find("\n", offset)
         return self.text[start: end if end >= 0 else len(self.text)]
 
-    def _syntax_error(self, failure: _Failure, p21_id: int | None) -> Part21SyntaxError:
+    def _syntax_error(self, failure: _Failure, p21_id: int | None, recoverable: bool = False) -> Part21SyntaxError:
+        """``recoverable``: the error is in the DATA sections, where lenient reading goes on."""
         line, column = self.position(failure.pos)
         return Part21SyntaxError(failure.message, self.filename, line, column, self._source_line(failure.pos),
-                                 p21_id, failure.expected)
+                                 p21_id, failure.expected, recoverable)
 
     def _diagnose(self, code: str, offset: int, p21_id: int | None, message: str) -> None:
         line, column = self.position(offset)
@@ -473,7 +474,7 @@ class Part21Reader:
                 return self._section_start(pos)
             except _Failure as failure:
                 if not self.lenient:
-                    raise self._syntax_error(failure, None) from None
+                    raise self._syntax_error(failure, None, recoverable=True) from None
                 stop, message = failure.pos, failure.message
             kind, tok, start, _ = self._token(stop)
             if kind == "ref" and _INSTANCE_START.match(self.text, start):
@@ -506,7 +507,7 @@ class Part21Reader:
             if kind == "eof":
                 if not self.lenient:
                     raise self._syntax_error(_Failure("unexpected end of file in DATA section", start, ("ENDSEC",)),
-                                             None)
+                                             None, recoverable=True)
                 if not self._truncated:
                     self._truncate(start, None)
                 return start
@@ -518,7 +519,7 @@ class Part21Reader:
                 instance, pos = self._instance(p21_id, start, end)
             except _Failure as failure:
                 if not self.lenient:
-                    raise self._syntax_error(failure, p21_id) from None
+                    raise self._syntax_error(failure, p21_id, recoverable=True) from None
                 broken, pos = self._recover(failure, p21_id, start)
                 if broken is not None:
                     broken.section = index
@@ -529,7 +530,7 @@ class Part21Reader:
             if instance.id in self._ids:
                 message = f"#{instance.id} is defined again; this later definition is not loaded"
                 if not self.lenient:
-                    raise self._syntax_error(_Failure(message, start, ()), instance.id)
+                    raise self._syntax_error(_Failure(message, start, ()), instance.id, recoverable=True)
                 self._diagnose("P21-DUPLICATE-ID", start, instance.id, message)
                 self.duplicate_texts.append((instance.id, start, instance.end))
                 continue
@@ -543,7 +544,7 @@ class Part21Reader:
             return self._expect(end, ";")
         except _Failure as failure:
             if not self.lenient:
-                raise self._syntax_error(failure, None) from None
+                raise self._syntax_error(failure, None, recoverable=True) from None
             self._diagnose("P21-MISSING-SEMICOLON", end, None, "';' missing after ENDSEC; read as present")
             return end
 
