@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
@@ -23,6 +24,16 @@ EXIT_OK, EXIT_NONCONFORMING, EXIT_BAD_INPUT = 0, 1, 2
 
 out = Console(highlight=False, soft_wrap=True)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
+
+
+def show_warnings() -> None:
+    """Print Python warnings (a stale compiled model, say) as ``warning: ...`` lines on stderr."""
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: Any = None, line: str | None = None) -> None:
+        err.print(f"[yellow]warning:[/] {message}", markup=True, highlight=False)
+
+    warnings.showwarning = show
 
 
 def fail_input(exc: Exception, fmt: str = "text") -> NoReturn:

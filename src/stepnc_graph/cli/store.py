@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
-from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
 
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
@@ -21,12 +20,16 @@ from stepnc_graph.cli.common import (
 )
 
 if TYPE_CHECKING:
+    from rich.progress import Progress
+
     from stepnc_graph.loader import LoadResult
     from stepnc_graph.part21 import Part21SyntaxError
     from stepnc_graph.store import GraphStore
 
 
 def _progress_bar() -> Progress:
+    from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+
     return Progress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
                     TimeRemainingColumn(), console=err, transient=True)
 
