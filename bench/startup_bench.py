@@ -52,19 +52,17 @@ class Command:
     args: tuple[str, ...]
     startup: str
     target: float | None = None  # seconds of total wall time (issue 11)
-    needs_store: bool = False
 
 
 COMMANDS = (
     Command("--help", ("--help",), _CLI, 0.1),
     Command("load --memory", ("load", "--memory", str(EXAMPLE)),
             f"{_CLI}; import stepnc_graph.api, stepnc_graph.loader; {_PLANS}", 0.2),
-    Command("info", ("info",), f"{_CLI}; import stepnc_graph.api", needs_store=True),
+    Command("info", ("info",), f"{_CLI}; import stepnc_graph.api"),
     Command("export ttl", ("export", "--format", "ttl", "--graph", GRAPH),
-            f"{_CLI}; import stepnc_graph.api; from stepnc_graph.schema.catalog import iso14649; iso14649()",
-            needs_store=True),
+            f"{_CLI}; import stepnc_graph.api; from stepnc_graph.schema.catalog import iso14649; iso14649()"),
     Command("export p21", ("export", "--format", "p21", "--graph", GRAPH),
-            f"{_CLI}; import stepnc_graph.api; {_PLANS}", needs_store=True),
+            f"{_CLI}; import stepnc_graph.api; {_PLANS}"),
     Command("schema entity", ("schema", "entity", "turning_workingstep"),
             f"{_CLI}; from stepnc_graph.schema.catalog import iso14649; iso14649()"),
     # `query` and `validate` join here (target 0.2 s) once they are commands.

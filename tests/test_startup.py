@@ -51,7 +51,7 @@ def test_help_imports_no_command_dependencies() -> None:
     assert "pyoxigraph" not in modules and "stepnc_graph.store" not in modules
 
 
-def test_load_reads_the_compiled_model_and_imports_no_rdf_library(tmp_path: Path) -> None:
+def test_load_reads_the_compiled_model_and_imports_no_rdf_library() -> None:
     code, modules = imported_by(["load", "--memory", str(EXAMPLE)])
     assert code == 0
     assert heavy(modules) == []
