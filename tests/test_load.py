@@ -473,7 +473,7 @@ def test_killed_load_is_rolled_back_on_next_open(tmp_path: Path) -> None:
     before = _snapshot(store)
     store.close()
     script = f"""
-import os, stepnc_graph as sg
+import os, stepnc_graph as sg, stepnc_graph.loader
 from stepnc_graph.mapping import mapper
 import sys
 sys.modules['stepnc_graph.loader'].CHUNK_LINES = 10

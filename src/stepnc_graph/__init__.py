@@ -6,10 +6,49 @@ The Python API (see :mod:`stepnc_graph.api`)::
     store = sg.open_store(memory=True)
     [result] = sg.load(store, ["examples/shaft_two_setups.stp"])
     sg.export(store, "ttl", result.graph)
+
+The API names are imported on first use (module ``__getattr__``), so that
+``import stepnc_graph.cli`` -- every command, even ``--help`` -- does not pay
+for the store, the loader and the exporters before it needs them.
 """
+
+from __future__ import annotations
+
+import sys
+import types
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload  # noqa: E402
+if TYPE_CHECKING:
+    from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload
 
 __all__ = ["GraphInfo", "LoadResult", "__version__", "export", "info", "load", "open_store", "unload"]
+
+
+class _Package(types.ModuleType):
+    """This package's module type: the submodule ``stepnc_graph.export`` never hides ``export()``.
+
+    Importing a submodule binds it on its package under its name. When the API
+    was imported here eagerly, ``export`` was re-bound to the function right
+    after; imported lazily, the submodule (imported by the loader, the CLI, ...)
+    would take the name for good, so that binding is refused here.
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in __all__ and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        from stepnc_graph import api
+
+        value = getattr(api, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

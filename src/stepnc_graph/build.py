@@ -1,6 +1,8 @@
 """Regenerate (or check) every generated artefact from ``ontology/express/``.
 
 Paths are relative to a project root: ``ontology/*.ttl``,
+``ontology/compiled-model.json`` (the resolved model and mapping plans that
+commands read instead of the EXPRESS, see :mod:`stepnc_graph.schema.cache`),
 ``docs/ontology.html`` and ``src/stepnc_graph/vocab.py``.
 """
 
@@ -14,6 +16,8 @@ from stepnc_graph.generators.jsonld import JsonLdContextGenerator
 from stepnc_graph.generators.owl import OwlGenerator
 from stepnc_graph.generators.p21 import P21VocabularyGenerator
 from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
+from stepnc_graph.mapping.plan import Plans
+from stepnc_graph.schema import cache
 from stepnc_graph.schema.catalog import load_catalog_model
 
 
@@ -35,6 +39,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"ontology/{rel}"] = text
     for rel, text in JsonLdContextGenerator(naming).outputs().items():
         out[f"ontology/{rel}"] = text
+    digest = cache.express_digest(catalog.directory)
+    out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, Plans(model, naming).dump(), digest)
     for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():
         out[f"docs/{rel}"] = text
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():

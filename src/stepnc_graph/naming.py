@@ -29,9 +29,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import PurePath
+from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
-from rdflib import Namespace, URIRef
+if TYPE_CHECKING:
+    from rdflib import Namespace, URIRef
 
 STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
 ONTOLOGY_BASE = "https://w3id.org/stepnc-graph/iso14649/"
@@ -43,8 +45,31 @@ DATA_BASE = "https://w3id.org/stepnc-graph/data/"
 VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
 TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
 
-STEPNC = Namespace(STEPNC_NS)
-P21 = Namespace(P21_NS)
+#: ``STEPNC`` and ``P21`` are rdflib Namespaces over the two namespaces above,
+#: made on first use (module ``__getattr__``): rdflib costs about 0.1 s to
+#: import, and loading a program never needs it.
+_NAMESPACES = {"STEPNC": STEPNC_NS, "P21": P21_NS}
+
+if TYPE_CHECKING:
+    STEPNC: Namespace
+    P21: Namespace
+
+
+def __getattr__(name: str) -> Any:
+    if name in _NAMESPACES:
+        from rdflib import Namespace
+
+        value = Namespace(_NAMESPACES[name])
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _uri(value: str) -> URIRef:
+    """An rdflib IRI; rdflib is imported here, on first use, not with this module."""
+    from rdflib import URIRef
+
+    return URIRef(value)
 
 
 @dataclass(frozen=True)
@@ -56,19 +81,19 @@ class Naming:
 
     def declaration(self, name: str) -> URIRef:
         """An entity, defined type, enumeration or select."""
-        return URIRef(self.namespace + name.lower())
+        return _uri(self.namespace + name.lower())
 
     def attribute(self, entity: str, attribute: str) -> URIRef:
-        return URIRef(f"{self.namespace}{entity.lower()}.{attribute.lower()}")
+        return _uri(f"{self.namespace}{entity.lower()}.{attribute.lower()}")
 
     def enum_item(self, enumeration: str, item: str) -> URIRef:
-        return URIRef(f"{self.namespace}{enumeration.lower()}.{item.lower()}")
+        return _uri(f"{self.namespace}{enumeration.lower()}.{item.lower()}")
 
     def ontology(self, schema: str) -> URIRef:
-        return URIRef(self.ontology_base + schema.lower())
+        return _uri(self.ontology_base + schema.lower())
 
     def ontology_version(self, schema: str, version: str) -> URIRef:
-        return URIRef(f"{self.ontology_base}{schema.lower()}/{version}")
+        return _uri(f"{self.ontology_base}{schema.lower()}/{version}")
 
     def local_name(self, iri: str) -> str | None:
         """The local part of a vocabulary IRI, or None for a foreign IRI."""

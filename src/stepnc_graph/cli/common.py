@@ -13,22 +13,71 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, cast
 
 import click
-from rich.console import Console
-from rich.markup import escape
 
 if TYPE_CHECKING:
+    from rich.console import Console
+
     from stepnc_graph.store import GraphStore, Writer
 
 EXIT_OK, EXIT_NONCONFORMING, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
 
-out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False, soft_wrap=True)
+
+class _LazyConsole:
+    """A rich ``Console`` made on first use, standing in for it.
+
+    Importing rich.console takes about 15 ms, a quarter of ``--help``, which
+    prints through click; so the consoles are made when a command first prints.
+    Attribute access and ``with`` (rich's live displays use it) go to the console.
+    """
+
+    def __init__(self, stderr: bool) -> None:
+        self._stderr = stderr
+        self._console: Console | None = None
+
+    @property
+    def console(self) -> Console:
+        if self._console is None:
+            from rich.console import Console
+
+            self._console = Console(stderr=self._stderr, highlight=False, soft_wrap=True)
+        return self._console
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.console, name)
+
+    def __enter__(self) -> Console:
+        return self.console.__enter__()
+
+    def __exit__(self, *exc_info: Any) -> None:
+        self.console.__exit__(*exc_info)
+
+
+out = cast("Console", _LazyConsole(stderr=False))
+err = cast("Console", _LazyConsole(stderr=True))
+
+
+def show_warnings() -> None:
+    """Print Python warnings (a stale compiled model, say) as ``warning: ...`` lines on stderr."""
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: Any = None, line: str | None = None) -> None:
+        err.print(f"[yellow]warning:[/] {escape(str(message))}", markup=True, highlight=False)
+
+    warnings.showwarning = show
+
+
+def escape(text: str) -> str:
+    """``text`` with rich markup escaped: file content must never be read as markup."""
+    from rich.markup import escape as rich_escape
+
+    return rich_escape(text)
 
 
 class UsageProblem(Exception):

@@ -1,4 +1,8 @@
-"""`stepnc-graph ontology`: build and inspect the generated vocabulary."""
+"""`stepnc-graph ontology`: build and inspect the generated vocabulary.
+
+The EXPRESS front end, the schema errors and rich's tables are imported inside
+the commands: every command line, ``--help`` included, imports this module.
+"""
 
 from __future__ import annotations
 
@@ -8,12 +12,9 @@ import time
 from pathlib import Path
 
 import click
-from rich.table import Table
 
 from stepnc_graph.cli.common import EXIT_NONCONFORMING, EXIT_OK, err, fail_input, out, root_option
-from stepnc_graph.express import ExpressSyntaxError
 from stepnc_graph.resources import data_root
-from stepnc_graph.schema import SchemaError
 
 
 @click.group()
@@ -30,6 +31,8 @@ def ontology_build(root: Path | None, check: bool) -> None:
     Output is byte-stable: building twice changes nothing.
     """
     from stepnc_graph.build import build
+    from stepnc_graph.express import ExpressSyntaxError
+    from stepnc_graph.schema import SchemaError
 
     root = root or data_root()
     started = time.perf_counter()
@@ -57,6 +60,10 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
 
     The two counts must be equal (100 % coverage); exit 1 if they are not.
     """
+    from rich.table import Table
+
+    from stepnc_graph.express import ExpressSyntaxError
+    from stepnc_graph.schema import SchemaError
     from stepnc_graph.stats import ontology_stats
 
     try:

@@ -1,4 +1,8 @@
-"""`stepnc-graph schema`: check EXPRESS files and look up entities of the shipped schemas."""
+"""`stepnc-graph schema`: check EXPRESS files and look up entities of the shipped schemas.
+
+The EXPRESS front end and the model builder are imported inside ``schema
+check``: ``schema entity`` reads the compiled model and never needs them.
+"""
 
 from __future__ import annotations
 
@@ -6,13 +10,14 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_OK, err, fail_input, out
-from stepnc_graph.express import ExpressSyntaxError, parse_file
-from stepnc_graph.express.parser import ParsedSchema
-from stepnc_graph.schema import SchemaError, build_model
+
+if TYPE_CHECKING:
+    from stepnc_graph.express.parser import ParsedSchema
 
 
 @click.group()
@@ -31,6 +36,9 @@ def schema_check(files: tuple[Path, ...], parse_only: bool, fmt: str) -> None:
     or every resolution error (unknown type, cycle, duplicate name). Exit 2 on
     any error.
     """
+    from stepnc_graph.express import ExpressSyntaxError, parse_file
+    from stepnc_graph.schema import SchemaError, build_model
+
     parsed: list[ParsedSchema] = []
     timings = {}
     try:

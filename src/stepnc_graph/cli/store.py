@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
-from rich.markup import escape
 
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
@@ -23,6 +22,7 @@ from stepnc_graph.cli.common import (
     UsageProblem,
     err,
     error_record,
+    escape,
     open_reader,
     open_writer,
     out,

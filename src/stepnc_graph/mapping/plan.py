@@ -3,6 +3,10 @@
 Built once per model from :mod:`stepnc_graph.typemap` decisions, so the hot
 loop of the loader only looks things up. The writer uses the same plans in
 reverse, which keeps load and export consistent by construction.
+
+The shipped model's plans are compiled by ``stepnc-graph ontology build`` into
+the compiled-model file (:mod:`stepnc_graph.schema.cache`): :meth:`Plans.dump`
+writes them, :meth:`Plans.restore` reads them back without recomputing.
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 from stepnc_graph.naming import P21_NS, Naming
 from stepnc_graph.schema.model import (
@@ -25,7 +30,6 @@ from stepnc_graph.schema.model import (
     TypeRef,
 )
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.typemap import XSD_OF
 
 
 @dataclass(frozen=True)
@@ -87,11 +91,76 @@ class Plans:
         self.entities: dict[str, EntityPlan] = {}
         for e in model.entities.values():
             self.entities[e.name.upper()] = self._entity_plan(e)
+        self._index()
+
+    def _index(self) -> None:
+        """The look-up tables derived from ``entities`` and ``_enc``."""
         self.by_class = {p.cls: p for p in self.entities.values()}
         # Reverse maps for the writer. Every enumeration and SELECT encoding is
         # cached in _enc by now (plans of all entities were built above).
         self.item_names = {iri: item for enc in self._enc.values() for item, iri in enc.items.items()}
         self.typed_names = {cls: name for enc in self._enc.values() for name, (cls, _) in enc.typed.items()}
+
+    # -- compiled form --------------------------------------------------------
+
+    def dump(self) -> dict[str, list[Any]]:
+        """The plans as JSON values: an encoding table and one record per entity.
+
+        Encodings are listed once each, nested ones before the encodings that
+        use them, and referred to by position; IRIs in this vocabulary's
+        namespace are written without it.
+        """
+        table: list[Any] = []
+        index: dict[int, int] = {}
+        local = self._local
+
+        def encoding(e: Encoding) -> int:
+            if id(e) not in index:
+                element = None if e.element is None else encoding(e.element)
+                typed = {name: [local(cls), encoding(inner)] for name, (cls, inner) in e.typed.items()}
+                items = {item: local(iri) for item, iri in e.items.items()}
+                index[id(e)] = len(table)
+                table.append([e.kind, e.label, items, typed, e.accepts_refs, element, e.datatype, e.lower, e.upper])
+            return index[id(e)]
+
+        def slot(s: Slot) -> list[Any]:
+            return [s.index, s.name, s.entity, local(s.prop), encoding(s.encoding), s.optional, s.derived,
+                    s.repeated]
+
+        named = [[name, encoding(e)] for name, e in self._enc.items()]
+        entities = [[p.name, local(p.cls), p.abstract, [slot(s) for s in p.slots], [slot(s) for s in p.own_slots],
+                     p.its_id, p.own_its_id] for p in self.entities.values()]
+        return {"encodings": table, "named": named, "entities": entities}
+
+    def _local(self, iri: str) -> str:
+        name = self.n.local_name(iri)
+        if name is None:
+            raise ValueError(f"{iri} is not in the vocabulary namespace {self.n.namespace}")
+        return name
+
+    @classmethod
+    def restore(cls, model: SchemaModel, naming: Naming, data: dict[str, list[Any]]) -> "Plans":
+        """Plans equal to ``Plans(model, naming)`` from what :meth:`dump` wrote for them."""
+        ns = naming.namespace
+        table: list[Encoding] = []
+        for kind, label, items, typed, refs, element, datatype, lower, upper in data["encodings"]:
+            table.append(Encoding(kind, label, {k: ns + v for k, v in items.items()},
+                                  {k: (ns + c, table[i]) for k, (c, i) in typed.items()}, refs,
+                                  None if element is None else table[element], datatype, lower, upper))
+
+        def slots(records: list[list[Any]]) -> tuple[Slot, ...]:
+            return tuple(Slot(i, name, entity, ns + prop, table[e], optional, derived, repeated)
+                         for i, name, entity, prop, e, optional, derived, repeated in records)
+
+        plans = cls.__new__(cls)
+        plans.model = model
+        plans.n = naming
+        plans._enc = {name: table[i] for name, i in data["named"]}
+        plans.entities = {name.upper(): EntityPlan(name, ns + c, abstract, slots(all_slots), slots(own), its_id,
+                                                   own_its_id)
+                          for name, c, abstract, all_slots, own, its_id, own_its_id in data["entities"]}
+        plans._index()
+        return plans
 
     # -- encodings ----------------------------------------------------------
 
@@ -112,6 +181,8 @@ class Plans:
         kind = {BaseType.INTEGER: "integer", BaseType.REAL: "real", BaseType.NUMBER: "real",
                 BaseType.STRING: "string", BaseType.BOOLEAN: "boolean", BaseType.LOGICAL: "logical",
                 BaseType.BINARY: "binary"}[base]
+        from stepnc_graph.typemap import XSD_OF  # rdflib: only when plans are built, not restored
+
         return Encoding(kind, label or base.value, datatype=str(XSD_OF[base]))
 
     def _named(self, name: str) -> Encoding:
@@ -193,9 +264,17 @@ def plans_for(model: SchemaModel, naming: Naming) -> Plans:
     return Plans(model, naming)
 
 
+@lru_cache(maxsize=1)
 def iso14649_plans() -> Plans:
-    """The plans of the shipped ISO 14649 model (built once per process)."""
-    from stepnc_graph.schema.catalog import iso14649
+    """The plans of the shipped ISO 14649 model, once per process.
 
-    catalog, model = iso14649()
-    return plans_for(model, catalog.naming)
+    Read from the compiled-model file; built from the model when that file was
+    missing or stale (:func:`stepnc_graph.schema.cache.shipped` warned then).
+    """
+    from stepnc_graph.schema.cache import shipped
+
+    compiled = shipped()
+    naming = compiled.catalog.naming
+    if compiled.plans is None:
+        return plans_for(compiled.model, naming)
+    return Plans.restore(compiled.model, naming, compiled.plans)

@@ -1,20 +1,22 @@
-"""The project's ISO 14649 schemas: read ``ontology/express/schemas.toml`` and build the model."""
+"""The project's ISO 14649 schemas: read ``ontology/express/schemas.toml`` and build the model.
+
+:func:`iso14649` reads the compiled model (:mod:`stepnc_graph.schema.cache`);
+the EXPRESS parser and the builder are imported only when the model is built
+from the EXPRESS.
+"""
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from stepnc_graph.express.parser import ParsedSchema, parse_file
 from stepnc_graph.resources import express_dir
-from stepnc_graph.schema.builder import build_model
-from stepnc_graph.schema.view import SchemaModel
 
 if TYPE_CHECKING:
+    from stepnc_graph.express.parser import ParsedSchema
     from stepnc_graph.naming import Naming
+    from stepnc_graph.schema.view import SchemaModel
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,8 @@ class Catalog:
 
 
 def read_catalog(directory: Path | None = None) -> Catalog:
+    import tomllib
+
     d = directory or express_dir()
     with open(d / "schemas.toml", "rb") as fh:
         raw = tomllib.load(fh)
@@ -51,6 +55,8 @@ def read_catalog(directory: Path | None = None) -> Catalog:
 
 
 def parse_catalog(catalog: Catalog) -> list[ParsedSchema]:
+    from stepnc_graph.express.parser import parse_file
+
     parsed: list[ParsedSchema] = []
     for name in catalog.files:
         parsed.extend(parse_file(catalog.directory / name))
@@ -59,11 +65,19 @@ def parse_catalog(catalog: Catalog) -> list[ParsedSchema]:
 
 def load_catalog_model(directory: Path | None = None) -> tuple[Catalog, SchemaModel]:
     """Parse and resolve every schema the catalogue lists (uncached)."""
+    from stepnc_graph.schema.builder import build_model
+
     catalog = read_catalog(directory)
     return catalog, build_model(parse_catalog(catalog), catalog.schemas)
 
 
-@lru_cache(maxsize=1)
 def iso14649() -> tuple[Catalog, SchemaModel]:
-    """The shipped ISO 14649 model, built once per process."""
-    return load_catalog_model()
+    """The shipped ISO 14649 model, read once per process from the compiled model.
+
+    A missing or stale compiled model is rebuilt from the EXPRESS with a
+    :class:`~stepnc_graph.schema.cache.CompiledModelWarning`.
+    """
+    from stepnc_graph.schema.cache import shipped
+
+    compiled = shipped()
+    return compiled.catalog, compiled.model

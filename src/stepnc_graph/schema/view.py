@@ -10,8 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-
-import networkx as nx
+from typing import TYPE_CHECKING
 
 from stepnc_graph.schema.model import (
     AggregateType,
@@ -26,6 +25,9 @@ from stepnc_graph.schema.model import (
     SelectType,
     TypeRef,
 )
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 
 @dataclass(frozen=True)
@@ -135,7 +137,13 @@ class SchemaModel:
 
     @cached_property
     def hierarchy(self) -> nx.DiGraph:
-        """Directed graph supertype -> subtype over all entities."""
+        """Directed graph supertype -> subtype over all entities.
+
+        networkx is imported here, not with the module: loading a program never
+        needs the hierarchy graph, and networkx takes about 0.1 s to import.
+        """
+        import networkx as nx
+
         g: nx.DiGraph = nx.DiGraph()
         for e in self.entities.values():
             g.add_node(e.name)
@@ -161,6 +169,8 @@ class SchemaModel:
         return tuple(sorted(self.hierarchy.successors(key))) if key in self.hierarchy else ()
 
     def all_subtypes(self, name: str) -> tuple[str, ...]:
+        import networkx as nx
+
         key = name.lower()
         return tuple(sorted(nx.descendants(self.hierarchy, key))) if key in self.hierarchy else ()
 
