@@ -1,14 +1,27 @@
-"""Export graphs of the store: RDF serialisations and Part 21."""
+"""Export graphs of the store: RDF serialisations and Part 21.
+
+Exports are deterministic -- the same graph gives the same bytes -- so that a
+PLM system diffing two exports of a program sees only real changes. Oxigraph
+gives blank nodes random labels when it loads, and dumps in the order of its
+internal (hashed) ids, so RDF exports are written here in a canonical order:
+the graph's own node, then each instance in ``#id`` order with the blank
+nodes hanging off it (its lists and typed values) labelled by the instance and
+their place (``_:i12b3``), then the other named subjects sorted.
+"""
 
 from __future__ import annotations
 
+import io
 import json
+from collections.abc import Iterator
+from typing import Any
 
 import pyoxigraph as ox
 
 from stepnc_graph.generators.jsonld import context
 from stepnc_graph.mapping.plan import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
+from stepnc_graph.naming import P21_NS
 from stepnc_graph.resources import ontology_dir
 from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.store import GraphStore
@@ -45,20 +58,126 @@ def export(store: GraphStore, fmt: str, graph: str | None = None) -> bytes:
     if fmt == "jsonld":
         return _jsonld(store, graph)
     prefixes = context(iso14649()[0].naming)
-    return store.dump(_OX[fmt], None if fmt in QUAD_FORMATS and graph is None else graph, prefixes)
+    return _serialize(_OX[fmt], canonical_quads(store, graph), fmt not in QUAD_FORMATS, prefixes)
+
+
+def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,
+               prefixes: dict[str, str] | None = None) -> bytes:
+    buffer = io.BytesIO()
+    data: Iterator[ox.Quad] | Iterator[ox.Triple] = (
+        (ox.Triple(q.subject, q.predicate, q.object) for q in quads) if triples else quads)
+    keep = prefixes if prefixes and fmt in (ox.RdfFormat.TURTLE, ox.RdfFormat.TRIG) else None
+    ox.serialize(data, buffer, fmt, prefixes=keep)
+    return buffer.getvalue()
+
+
+def canonical_quads(store: GraphStore, graph: str | None = None) -> Iterator[ox.Quad]:
+    """The quads of ``graph`` (of every graph, in IRI order, for None) in the canonical order."""
+    if graph is not None:
+        yield from _graph_quads(store, graph)
+        return
+    db = store.oxigraph
+    default = sorted(db.quads_for_pattern(None, None, None, ox.DefaultGraph()), key=str)
+    yield from default
+    for name in store.graphs():
+        yield from _graph_quads(store, name)
+
+
+def _object_key(term: object) -> tuple[int, str]:
+    return (1, "") if isinstance(term, ox.BlankNode) else (0, str(term))
+
+
+def _graph_quads(store: GraphStore, graph: str) -> Iterator[ox.Quad]:
+    db = store.oxigraph
+    g = ox.NamedNode(graph)
+    numbered = sorted((int(str(q.object.value)), q.subject)  # type: ignore[union-attr]
+                      for q in db.quads_for_pattern(None, ox.NamedNode(P21_NS + "id"), None, g))
+    roots: list[tuple[str, Any]] = [("g", g)] + [(f"i{number}", node) for number, node in numbered]
+    taken = {str(node) for _, node in roots}
+    others = sorted((node for node in _named_subjects(store, graph) if str(node) not in taken), key=str)
+    roots += [(f"n{k}", node) for k, node in enumerate(others, start=1)]
+    blanks_seen: set[ox.BlankNode] = set()
+    for prefix, node in roots:
+        yield from _subtree(db, g, prefix, node, blanks_seen)
+    # blank nodes no named subject reaches (none in loaded programs; SPARQL Update can add them)
+    yield from sorted((q for q in db.quads_for_pattern(None, None, None, g)
+                       if isinstance(q.subject, ox.BlankNode) and q.subject not in blanks_seen), key=str)
+
+
+def _named_subjects(store: GraphStore, graph: str) -> list[ox.NamedNode]:
+    """The named subjects of the graph that are not numbered instances (metadata, aliases, sections)."""
+    rows = store.query(f"SELECT DISTINCT ?s WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o "
+                       f"FILTER(isIRI(?s) && NOT EXISTS {{ ?s <{P21_NS}id> ?i }}) }} }}")
+    return [row[0] for row in rows]
+
+
+def _subtree(db: ox.Store, g: ox.NamedNode, prefix: str, root: ox.NamedNode | ox.BlankNode,
+             blanks_seen: set[ox.BlankNode]) -> Iterator[ox.Quad]:
+    """``root``'s quads sorted, then its blank objects' (depth first), relabelled ``_:<prefix>b<n>``."""
+    labels: dict[ox.BlankNode, ox.BlankNode] = {}
+
+    def label(node: object) -> object:
+        if not isinstance(node, ox.BlankNode):
+            return node
+        if node not in labels:
+            labels[node] = ox.BlankNode(f"{prefix}b{len(labels) + 1}")
+        return labels[node]
+
+    stack: list[ox.NamedNode | ox.BlankNode] = [root]
+    while stack:
+        subject = stack.pop()
+        quads = sorted(db.quads_for_pattern(subject, None, None, g),
+                       key=lambda q: (q.predicate.value, _object_key(q.object), _shallow(db, g, q.object)))
+        children = []
+        for q in quads:
+            if isinstance(q.object, ox.BlankNode) and q.object not in blanks_seen:
+                blanks_seen.add(q.object)
+                label(q.object)
+                children.append(q.object)
+        for q in quads:
+            yield ox.Quad(label(q.subject), q.predicate, label(q.object), g)  # type: ignore[arg-type]
+        stack.extend(reversed(children))
+
+
+def _shallow(db: ox.Store, g: ox.NamedNode, term: object) -> str:
+    """A blank node's own triples without blank labels: orders blank siblings (SET members that
+    are typed values) the same way whatever labels Oxigraph gave them."""
+    if not isinstance(term, ox.BlankNode):
+        return ""
+    return "\n".join(sorted(f"{q.predicate} {'[]' if isinstance(q.object, ox.BlankNode) else q.object}"
+                            for q in db.quads_for_pattern(term, None, None, g)))
 
 
 def _jsonld(store: GraphStore, graph: str | None) -> bytes:
     """Compact JSON-LD with the shipped context (``ontology/context.jsonld``)."""
     import rdflib
 
-    data = store.dump(ox.RdfFormat.N_QUADS, None) if graph is None else store.dump(ox.RdfFormat.N_TRIPLES, graph)
-    if graph is None:
-        ds = rdflib.Dataset()
-        ds.parse(data=data.decode("utf-8"), format="nquads")
-        target: rdflib.Graph = ds
-    else:
-        target = rdflib.Graph(identifier=rdflib.URIRef(graph))
-        target.parse(data=data.decode("utf-8"), format="nt")
+    def term(t: Any) -> Any:  # our canonical labels kept (rdflib's parsers would rename blank nodes)
+        if isinstance(t, ox.BlankNode):
+            return rdflib.BNode(t.value)
+        if isinstance(t, ox.Literal):
+            return rdflib.Literal(t.value, lang=t.language, datatype=None if t.language else
+                                  rdflib.URIRef(t.datatype.value))
+        return rdflib.URIRef(t.value)
+
+    target: rdflib.Graph = rdflib.Dataset() if graph is None else rdflib.Graph(identifier=rdflib.URIRef(graph))
+    for q in canonical_quads(store, graph):
+        if isinstance(target, rdflib.Dataset):
+            name = q.graph_name
+            context = target.graph(term(name)) if isinstance(name, ox.NamedNode) else target.default_graph
+            context.add((term(q.subject), term(q.predicate), term(q.object)))
+        else:
+            target.add((term(q.subject), term(q.predicate), term(q.object)))
     ctx = json.loads((ontology_dir() / "context.jsonld").read_text())["@context"]
-    return target.serialize(format="json-ld", context=ctx, auto_compact=True).encode("utf-8")
+    doc = json.loads(target.serialize(format="json-ld", context=ctx, auto_compact=True))
+    # rdflib writes nodes and multiple values in set order: sort them (never an @list)
+    return (json.dumps(_sorted_json(doc), indent=2, sort_keys=True, ensure_ascii=False) + "\n").encode("utf-8")
+
+
+def _sorted_json(value: Any, ordered: bool = False) -> Any:
+    if isinstance(value, dict):
+        return {k: _sorted_json(v, k == "@list") for k, v in value.items()}
+    if isinstance(value, list):
+        items = [_sorted_json(v) for v in value]
+        return items if ordered else sorted(items, key=lambda v: json.dumps(v, sort_keys=True))
+    return value

@@ -7,6 +7,7 @@ Oxigraph's bulk loader -- so memory follows the file text, not its instances.
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import time
 from collections.abc import Callable, Iterator
@@ -105,6 +106,15 @@ def _header_triples(g: str, header: Header) -> list[str]:
     return out
 
 
+def load_time() -> datetime:
+    """Now, or ``$SOURCE_DATE_EPOCH`` when set: the reproducible-builds convention, so that
+    two loads of one file give byte-identical exports (CI, PLM diffs)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    if epoch.isdigit():
+        return datetime.fromtimestamp(int(epoch), timezone.utc)
+    return datetime.now(timezone.utc)
+
+
 class _Load:
     """One file's load: holds the reader, the mapper and the running counts.
 
@@ -178,7 +188,7 @@ class _Load:
     def metadata(self) -> list[str]:
         g = self.graph
         s = f"<{g}>"
-        now = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        now = load_time().isoformat(timespec="seconds")
         activity = f"<{instance_prefix(g)}load>"
         tool = f"<{TOOL_IRI}{__version__}>"
         used = [f"{activity} <{PROV}used> <{self.path.resolve().as_uri()}> .\n"] if self.path else []

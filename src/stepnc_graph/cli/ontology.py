@@ -83,7 +83,12 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
         table.add_row("total", *(f"{sum(getattr(r, 'express_' + k) for r in rows)} / "
                                  f"{sum(getattr(r, 'owl_' + k) for r in rows)}"
                                  for k in ("entities", "types", "attributes")), "yes" if complete else "NO")
-        out.print(table, width=None if out.is_terminal else 200)  # piped: never cut a schema name
+        if out.is_terminal:
+            out.print(table)
+        else:  # piped: wide enough never to cut a schema name (rich would use 80 columns)
+            from rich.console import Console
+
+            Console(file=sys.stdout, width=200, highlight=False).print(table)
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
 
 
