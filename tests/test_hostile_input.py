@@ -292,3 +292,36 @@ def test_binary_input_is_not_part21(tmp_path: Path) -> None:
         with pytest.raises(Part21SyntaxError, match="not a Part 21 file") as e:
             read_file(path, lenient)
         assert "\x00" not in str(e.value)
+
+
+def test_a_repaired_header_exports_strictly(tmp_path: Path) -> None:
+    path = tmp_path / "header.stp"
+    path.write_text(HEADER.replace("'2;1'", "T") + "#1=PROPERTY_PARAMETER('a');\nENDSEC;END-ISO-10303-21;\n")
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path], lenient=True)
+    assert "P21-BARE-ENUM" in codes(r)
+    [(original,)] = rows(store, r.graph, "?t", "?g p21:headerText ?t")
+    assert "'2;1'" not in original and ",T)" in original  # the evidence stays
+    again = tmp_path / "again.stp"
+    again.write_bytes(sg.export(store, "p21", r.graph))
+    [r2] = sg.load(sg.open_store(memory=True), [again])  # strict
+    assert r2.instances == 1 and "FILE_DESCRIPTION((''),.T.);" in again.read_text()
+
+
+# -- fuzzing: a sample of bench/fuzz_load.py's run --------------------------------------------------
+
+
+@pytest.mark.parametrize("chunk", range(4))
+def test_damaged_programs_keep_every_promise(chunk: int, time_bound: None) -> None:
+    """No exception but the documented ones, the invariant, a strictly parseable export."""
+    import random
+
+    from stepnc_graph.fuzz import check, mutate
+
+    programs = [EXAMPLE.read_bytes(), *(p.read_bytes() for p in sorted((ROOT / "tests" / "fixtures" / "p21").glob(
+        "*.stp")))]
+    for index in range(chunk * 15, chunk * 15 + 15):
+        rng = random.Random(index)
+        kind, data = mutate(rng, rng.choice(programs), programs)
+        outcome = check(data)
+        assert outcome.status in ("ok", "rejected"), (index, kind, outcome.detail)

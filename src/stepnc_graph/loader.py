@@ -32,6 +32,7 @@ from stepnc_graph.naming import (
     section_iri,
 )
 from stepnc_graph.part21.diagnostics import Diagnostic
+from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.sources import Source
@@ -103,6 +104,8 @@ def _header_triples(g: str, header: Header) -> list[str]:
     for schema in header.schemas:
         add(P21_NS + "schemaName", schema)
     add(P21_NS + "headerText", header.text)
+    if header.repaired:
+        add(P21_NS + "repairedHeaderText", format_header(header))
     return out
 
 

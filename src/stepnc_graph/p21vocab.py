@@ -60,6 +60,8 @@ TERMS: tuple[Term, ...] = (
     # loaded files (subject: the named graph of one file)
     Term("ExchangeStructure", "class", "A Part 21 file loaded as one named graph; the graph IRI is the subject."),
     Term("headerText", "data", "The HEADER section of the file, verbatim, so the writer can restore it."),
+    Term("repairedHeaderText", "data", "The HEADER section as the lenient reader repaired it; the export writes it, "
+                                       "p21:headerText keeps the original."),
     Term("schemaName", "data", "A schema named by the file's FILE_SCHEMA."),
     Term("implementationLevel", "data", "FILE_DESCRIPTION implementation level, e.g. '2;1'."),
     Term("preprocessorVersion", "data", "FILE_NAME preprocessor_version."),

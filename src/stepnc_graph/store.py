@@ -79,7 +79,7 @@ DIRECT_CHARS = 8_000_000
 #: measured costs per quad (µs) of deleting a graph's quads and of copying a
 #: quad into a rebuilt database; they choose how a graph is removed
 DELETE_COST, REBUILD_COST = 19.0, 10.0
-DELETE_BATCH = 200_000
+DELETE_BATCH = 100_000
 _LOCK_POLL = 0.2
 
 
@@ -194,6 +194,8 @@ class GraphStore:
         self._read_fd: int | None = None
         self._store: ox.Store | None = None
         self.generation: str | None = None
+        #: how the last graph removal was done on disk: "delete" or "rebuild" (for tests and benchmarks)
+        self.last_removal: str | None = None
         if self.path is None:
             self._store = ox.Store()
             return
@@ -501,8 +503,10 @@ class GraphStore:
         removed = sum(self.count(g) for g in present)
         remaining = len(self._db) - removed
         if remaining * REBUILD_COST < removed * DELETE_COST:
+            self.last_removal = "rebuild"
             self._rebuild_without(set(present))
         else:
+            self.last_removal = "delete"
             for g in present:
                 self._delete_in_batches(g)
 

@@ -1361,6 +1361,7 @@ class P21(DefinedNamespace):
     rawText: URIRef
     redeclaration: URIRef
     referenceSectionText: URIRef
+    repairedHeaderText: URIRef
     repairedText: URIRef
     schema: URIRef
     schemaName: URIRef

@@ -100,7 +100,7 @@ class Part21Writer:
         instances = self._instances(props)
         self.ids = {key: i for i, key in instances}
         schemas = self._schemas(props, graph)
-        header = text("headerText") or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
+        header = text("repairedHeaderText") or text("headerText") or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
         # edition 3: ANCHOR and REFERENCE sections verbatim (ids are kept, so they still hold)
         extra = "".join(f"{t}\n" for t in (text("anchorSectionText"), text("referenceSectionText")) if t)
         body = "".join(f"{opener}\n" + "\n".join(self._instance(i, key) for i, key in members) + "\nENDSEC;\n"

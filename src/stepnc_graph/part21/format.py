@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from stepnc_graph.part21.reader import Instance
+from stepnc_graph.part21.reader import Header, Instance
 from stepnc_graph.part21.strings import encode
 from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
@@ -64,3 +64,10 @@ def format_instance(inst: Instance) -> str:
         return f"#{inst.id}={inst.name}({','.join(format_value(v) for v in inst.params)});"
     parts = "".join(f"{name}({','.join(format_value(v) for v in params)})" for name, params in inst.parts)
     return f"#{inst.id}=({parts});"
+
+
+def format_header(header: Header) -> str:
+    """The HEADER section from its parsed entities (``HEADER;`` to ``ENDSEC;``)."""
+    entities = "".join(f"{name}({','.join(format_value(v) for v in params)});\n"
+                       for name, params in header.entities.items())
+    return f"HEADER;\n{entities}ENDSEC;"

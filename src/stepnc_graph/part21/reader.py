@@ -111,6 +111,9 @@ class Header:
     references: list[tuple[str, str]] = field(default_factory=list)
     reference_text: str = ""  # the REFERENCE section verbatim
     signatures: list[str] = field(default_factory=list)  # SIGNATURE sections verbatim
+    #: lenient mode repaired the HEADER (a bare enumeration, a typographic quote): ``text``
+    #: is not valid Part 21, :func:`stepnc_graph.part21.format.format_header` of it is
+    repaired: bool = False
 
     @property
     def schemas(self) -> list[str]:
@@ -340,6 +343,7 @@ class Part21Reader:
         if m is None:
             raise self._syntax_error(_Failure("not a Part 21 file: expected 'ISO-10303-21;' at the start",
                                               0, ("ISO-10303-21;",)), None)
+        first = len(self.diagnostics)
         try:
             _, _, header_start, _ = self._token(m.end())
             pos = self._expect(m.end(), "HEADER")
@@ -357,6 +361,7 @@ class Part21Reader:
         except _Failure as failure:
             raise self._syntax_error(failure, None) from None
         self.header.text = self.text[header_start:pos]
+        self.header.repaired = len(self.diagnostics) > first
         for required in ("FILE_DESCRIPTION", "FILE_NAME", "FILE_SCHEMA"):
             if required not in self.header.entities:
                 self._diagnose("P21-HEADER", pos, None, f"HEADER has no {required}")

@@ -1,0 +1,141 @@
+"""Store benchmark: load, replace (load again) and unload of one program, side by side.
+
+    pip install -e '.[bench]' && python bench/store_bench.py                 # 100k instances
+    python bench/store_bench.py --sizes 100000 1000000                       # add 1M (slow)
+
+For each program (a generated one and a replicated real one, see bench/generate.py) and
+size, in the same run, every operation in its own fresh process on an on-disk store that
+an earlier process prepared: wall and CPU seconds, the process's peak RSS, how the store
+removed the old graph ("rebuild": the store held little else; "delete": batched deletes
+beside other programs), and the store's size on disk afterwards. Ratios are against the
+fresh load of the same file measured in the same run. "beside 3 others" puts the program
+in a store that also holds three other copies of it (other graph IRIs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+from generate import replicate, write  # noqa: E402
+
+GRAPH = "https://w3id.org/stepnc-graph/data/bench.stp"
+
+
+def child(op: str, store_dir: str, path: str) -> None:
+    """One operation in this process; prints wall, CPU, peak RSS and the removal strategy as JSON."""
+    import stepnc_graph as sg
+    from stepnc_graph.schema.catalog import iso14649
+
+    iso14649()
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    removal = None
+    with sg.open_store(store_dir) as store:
+        if op == "load" or op == "replace":
+            [r] = sg.load(store, [path], base_iri=GRAPH)
+            assert not r.diagnostics, r.diagnostics[:3]
+        elif op == "unload":
+            assert sg.unload(store, GRAPH)
+        elif op.startswith("others"):
+            for k in range(int(op[len("others"):])):
+                sg.load(store, [path], base_iri=f"{GRAPH}-other{k}")
+        removal = store.last_removal
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    print(json.dumps({"wall": wall, "cpu": cpu, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                      "removal": removal}))
+
+
+def run(op: str, store: Path, path: Path) -> dict[str, float | str | None]:
+    done = subprocess.run([sys.executable, __file__, "--child", op, str(store), str(path)], capture_output=True,
+                          text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+
+
+def disk_mb(path: Path) -> float:
+    """Bytes on disk under ``path``, each hard-linked file once (generations share SST files)."""
+    seen: dict[tuple[int, int], int] = {}
+    for f in path.rglob("*"):
+        if f.is_file():
+            st = f.stat()
+            seen[(st.st_dev, st.st_ino)] = st.st_blocks * 512
+    return sum(seen.values()) / 1e6
+
+
+def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict[str, float | str | None]]:
+    """Median figures of load, replace and unload with ``others`` other programs in the store."""
+    results: dict[str, list[dict[str, float | str | None]]] = {"load": [], "replace": [], "unload": []}
+    for _ in range(repeat):
+        store = work / "store"
+        shutil.rmtree(store, ignore_errors=True)
+        if others:
+            run(f"others{others}", store, path)
+        results["load"].append(run("load", store, path))
+        results["replace"].append(run("replace", store, path))
+        results["unload"].append({**run("unload", store, path), "disk_mb": disk_mb(store)})
+    out = {}
+    for op, runs in results.items():
+        out[op] = {k: statistics.median(float(r[k]) for r in runs)  # type: ignore[arg-type]
+                   for k in ("wall", "cpu", "rss_mb")}
+        out[op]["removal"] = runs[0]["removal"]
+        if op == "unload":
+            out[op]["disk_mb"] = statistics.median(float(r["disk_mb"]) for r in runs)  # type: ignore[arg-type]
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100_000])
+    ap.add_argument("--repeat", type=int, default=3, help="runs per figure below 1M instances (1M: 1 run)")
+    ap.add_argument("--real", type=Path, default=ROOT / "examples" / "shaft_two_setups.stp",
+                    help="the real program to replicate (default: the shipped example)")
+    ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
+    ap.add_argument("--child", nargs=3, metavar=("OP", "STORE", "PATH"), help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(*args.child)
+        return
+    args.data.mkdir(parents=True, exist_ok=True)
+    print(f"machine: {os.cpu_count()} cores; Python {sys.version.split()[0]}; seconds are wall / CPU")
+    header = (f"{'program':>22} {'store holds':>15} | {'load':>22} | {'replace':>32} | {'unload':>42}")
+    print(header)
+    print("-" * len(header))
+    for size in args.sizes:
+        programs = {f"generated {size:,}": args.data / f"turning_{size}.stp",
+                    f"replicated {size:,}": args.data / f"real_{size}.stp"}
+        if not programs[f"generated {size:,}"].exists():
+            write(size, programs[f"generated {size:,}"])
+        if not programs[f"replicated {size:,}"].exists():
+            replicate(args.real, size, programs[f"replicated {size:,}"])
+        repeat = 1 if size >= 1_000_000 else args.repeat
+        for name, path in programs.items():
+            for others in (0, 3):
+                with tempfile.TemporaryDirectory(dir=args.data) as work:
+                    r = scenario(path, others, repeat, Path(work))
+                load, rep, unl = r["load"], r["replace"], r["unload"]
+
+                def cell(x: dict[str, float | str | None]) -> str:
+                    return f"{x['wall']:5.1f}/{x['cpu']:5.1f} s {x['rss_mb']:5.0f} MB"
+
+                print(f"{name:>22} {'it alone' if not others else 'beside 3 others':>15} | {cell(load)} | "
+                      f"{cell(rep)} {float(rep['wall']) / float(load['wall']):4.2f}x {rep['removal']:>7} | "
+                      f"{cell(unl)} {float(unl['wall']) / float(load['wall']):4.2f}x {unl['removal']:>7} "
+                      f"{unl['disk_mb']:5.0f} MB", flush=True)
+    print("\nmedians; MB: the operation's peak RSS; the ratios are wall time against the fresh load in the same "
+          "row;\nthe last column is the store's size on disk after the unload.")
+
+
+if __name__ == "__main__":
+    main()
