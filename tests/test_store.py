@@ -1,0 +1,132 @@
+"""The on-disk store: generations, readers, unload and replace by rebuild or batched deletes."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+import stepnc_graph as sg
+from stepnc_graph import store as store_module
+from stepnc_graph.store import GraphStore, StoreBusy, StoreError
+
+from conftest import ROOT
+
+EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
+G = "https://w3id.org/stepnc-graph/data/shaft_two_setups.stp"
+
+
+def disk_bytes(path: Path) -> int:
+    """Bytes on disk under ``path``, each hard-linked file counted once."""
+    seen = {}
+    for f in path.rglob("*"):
+        if f.is_file():
+            st = f.stat()
+            seen[(st.st_dev, st.st_ino)] = st.st_blocks * 512
+    return sum(seen.values())
+
+
+def quads(s: GraphStore) -> list[str]:
+    return sorted(str(q) for q in s.quads())
+
+
+def copies(store: GraphStore, n: int) -> list[str]:
+    graphs = [f"urn:copy:{k}" for k in range(n)]
+    for g in graphs:
+        sg.load(store, [EXAMPLE], base_iri=g)
+    return graphs
+
+
+def test_unloading_the_only_program_rebuilds_and_gives_the_space_back(tmp_path: Path) -> None:
+    sys.path.insert(0, str(ROOT / "bench"))
+    from generate import write  # type: ignore[import-not-found]
+
+    big = tmp_path / "big.stp"
+    write(20_000, big)
+    with sg.open_store(tmp_path / "s") as s:
+        [r] = sg.load(s, [big])
+        loaded = disk_bytes(tmp_path / "s")
+        assert sg.unload(s, r.graph) and s.last_removal == "rebuild"
+    assert disk_bytes(tmp_path / "s") < loaded / 5
+    with sg.open_store(tmp_path / "s", readonly=True) as r2:
+        assert r2.count() == 0
+
+
+def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(store_module, "DELETE_BATCH", 100)  # several batches on a small graph
+    with sg.open_store(tmp_path / "s") as s:
+        graphs = copies(s, 4)
+        counts = {g: s.count(g) for g in graphs}
+        assert sg.unload(s, graphs[0]) and s.last_removal == "delete"
+        assert {g: s.count(g) for g in graphs[1:]} == {g: counts[g] for g in graphs[1:]}
+        assert not s.has_graph(graphs[0])
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        assert r.graphs() == sorted(graphs[1:])
+
+
+@pytest.mark.parametrize("others", [0, 3], ids=["rebuild", "delete"])
+def test_a_failed_replace_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                     others: int) -> None:
+    with sg.open_store(tmp_path / "s") as s:
+        copies(s, others)
+        sg.load(s, [EXAMPLE])
+        before = quads(s)
+
+        def failing(*args: object) -> None:
+            raise RuntimeError("disk full (injected)")
+
+        monkeypatch.setattr(GraphStore, "_bulk_load", failing)
+        with pytest.raises(RuntimeError, match="injected"):
+            sg.load(s, [EXAMPLE])
+        assert s.last_removal == ("rebuild" if others == 0 else "delete")
+        assert quads(s) == before
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        assert quads(r) == before
+
+
+def test_readers_keep_their_generation_while_a_writer_publishes(tmp_path: Path) -> None:
+    with sg.open_store(tmp_path / "s") as w:
+        sg.load(w, [EXAMPLE])
+        reader = sg.open_store(tmp_path / "s", readonly=True)
+        seen = reader.generation
+        assert sg.unload(w, G)
+        assert reader.has_graph(G) and reader.count(G) > 0  # its generation is still whole
+        assert w.generation != seen and (tmp_path / "s" / str(seen)).is_dir()  # not collected while read
+        reader.close()
+        sg.load(w, [EXAMPLE])  # the next publication collects it
+        assert not (tmp_path / "s" / str(seen)).exists()
+
+
+def test_one_writer_at_a_time_in_one_process_too(tmp_path: Path) -> None:
+    with sg.open_store(tmp_path / "s"):
+        with pytest.raises(StoreBusy, match=r"being written by pid \d+"):
+            sg.open_store(tmp_path / "s")
+        with pytest.raises(StoreBusy):
+            sg.open_store(tmp_path / "s", wait=0.3)
+        assert sg.open_store(tmp_path / "s", readonly=True).graphs() == []
+
+
+def test_a_read_only_store_refuses_writes(tmp_path: Path) -> None:
+    sg.open_store(tmp_path / "s").close()
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        with pytest.raises(StoreError, match="read-only"):
+            sg.load(r, [EXAMPLE])
+
+
+def test_a_format_1_store_is_migrated(tmp_path: Path) -> None:
+    """A store written before generations (oxigraph/ + marker format 1) opens and keeps its data."""
+    import pyoxigraph as ox
+
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "stepnc-graph-store.json").write_text(json.dumps({"format": 1}) + "\n")
+    db = ox.Store(str(old / "oxigraph"))
+    db.add(ox.Quad(ox.NamedNode("urn:s"), ox.NamedNode("urn:p"), ox.Literal("kept"), ox.NamedNode("urn:g")))
+    db.flush()
+    del db
+    with sg.open_store(old, readonly=True) as r:  # a reader asks the writer's lock to migrate
+        assert r.graphs() == ["urn:g"]
+    assert not (old / "oxigraph").exists() and json.loads((old / "stepnc-graph-store.json").read_text())[
+        "format"] == store_module.FORMAT_VERSION
