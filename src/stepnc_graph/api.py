@@ -18,7 +18,7 @@ from stepnc_graph.export import export
 from stepnc_graph.loader import LoadResult, Progress, load_source
 from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
 from stepnc_graph.naming import P21_NS, derived_graph_iri
-from stepnc_graph.store import GraphStore, StoreBusy, StoreError, Writer, default_store_path
+from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path
 
 __all__ = ["GraphInfo", "LoadResult", "SourceError", "StoreBusy", "StoreError", "export", "info",
            "load", "open_store", "unload"]
@@ -40,7 +40,7 @@ def open_store(path: str | Path | None = None, memory: bool = False, *, readonly
                       create=not readonly if create is None else create, wait=wait, on_wait=on_wait)
 
 
-def load(store: GraphStore, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
+def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
          progress: Progress | None = None, replace: bool = False) -> list[LoadResult]:
     """Load each file (a directory: every Part 21 file under it; ``-``: standard input)
     into its own named graph, replacing an earlier load of the same file.
@@ -57,7 +57,7 @@ def load(store: GraphStore, paths: Iterable[str | Path], *, lenient: bool = Fals
     return [load_source(store, s, lenient=lenient, progress=progress) for s in sources]
 
 
-def unload(store: GraphStore, graph: str) -> bool:
+def unload(store: Store, graph: str) -> bool:
     """Remove a file's graph (with its derived layer); False if there was none."""
     return store.remove_graph(graph, companions=(derived_graph_iri(graph),))
 
@@ -80,14 +80,14 @@ def _int(value: str | None) -> int | None:
     return int(value) if value is not None else None
 
 
-def program_graphs(store: GraphStore) -> list[str]:
+def program_graphs(store: Store) -> list[str]:
     """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary,
     derived layers or other graphs a user added."""
     rows = store.query(f"SELECT DISTINCT ?g WHERE {{ GRAPH ?g {{ ?g a <{P21_NS}ExchangeStructure> }} }}")
     return sorted(row[0].value for row in rows)
 
 
-def info(store: GraphStore) -> list[GraphInfo]:
+def info(store: Store) -> list[GraphInfo]:
     """The loaded files' graphs in the store with what their load recorded."""
     out = []
     for g in program_graphs(store):

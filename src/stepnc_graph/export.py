@@ -24,7 +24,7 @@ from stepnc_graph.mapping.writer import write_graph
 from stepnc_graph.naming import P21_NS
 from stepnc_graph.resources import ontology_dir
 from stepnc_graph.schema.catalog import iso14649
-from stepnc_graph.store import GraphStore
+from stepnc_graph.store import GraphStore, Store
 
 FORMATS = ("ttl", "nt", "nq", "trig", "jsonld", "p21")
 _OX = {"ttl": ox.RdfFormat.TURTLE, "nt": ox.RdfFormat.N_TRIPLES, "nq": ox.RdfFormat.N_QUADS,
@@ -36,7 +36,7 @@ class ExportError(ValueError):
     """An export that cannot be done as asked (unknown graph, p21 of several graphs, ...)."""
 
 
-def export(store: GraphStore, fmt: str, graph: str | None = None) -> bytes:
+def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
     """Serialise one graph (``graph``) or the whole store (``None``) as ``fmt``.
 
     Triple formats (ttl, nt, jsonld of one graph, p21) need a graph unless the
@@ -55,10 +55,12 @@ def export(store: GraphStore, fmt: str, graph: str | None = None) -> bytes:
     if fmt == "p21":
         assert graph is not None
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
+    # the canonical order walks the graph node by node: a remote graph is copied here first
+    local = store if isinstance(store, GraphStore) else store.local_copy(graph)  # type: ignore[attr-defined]
     if fmt == "jsonld":
-        return _jsonld(store, graph)
+        return _jsonld(local, graph)
     prefixes = context(iso14649()[0].naming)
-    return _serialize(_OX[fmt], canonical_quads(store, graph), fmt not in QUAD_FORMATS, prefixes)
+    return _serialize(_OX[fmt], canonical_quads(local, graph), fmt not in QUAD_FORMATS, prefixes)
 
 
 def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,

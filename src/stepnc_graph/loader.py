@@ -36,7 +36,7 @@ from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.sources import Source
-from stepnc_graph.store import GraphStore
+from stepnc_graph.store import Store
 
 DCT = "http://purl.org/dc/terms/"
 OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
@@ -243,7 +243,7 @@ class _Load:
         found = self.schema_diagnostics() + self.reader.diagnostics + self.mapper.diagnostics
         return sorted(found, key=lambda d: (d.line, d.column, d.code))
 
-    def dangling(self, store: GraphStore, where: str) -> list[Diagnostic]:
+    def dangling(self, store: Store, where: str) -> list[Diagnostic]:
         """References to instances the reader could not read (lenient mode only): from
         mapped instances (found in the graph) and from raw ones (their parsed references)."""
         unreadable = self.mapper.unreadable
@@ -253,21 +253,19 @@ class _Load:
         for p21_id, line, column, refs in self.mapper.raw_refs:
             found.update((line, column, p21_id, target) for target in refs if target in unreadable)
         prefix = instance_prefix(self.graph)
-        graph = ox.NamedNode(where)  # the graph holding the data now (maybe a staging graph)
-        ox_store = store.oxigraph
-        id_term, line_term = ox.NamedNode(P21_NS + "id"), ox.NamedNode(P21_NS + "line")
-        for target in sorted(unreadable):
-            for quad in ox_store.quads_for_pattern(None, None, ox.NamedNode(f"{prefix}i{target}"), graph):
-                owner: Any = quad.subject
-                while isinstance(owner, ox.BlankNode):  # a list cell or typed value: find its instance
-                    holder = next(iter(ox_store.quads_for_pattern(None, None, owner, graph)), None)
-                    owner = holder.subject if holder is not None else None
-                if owner is None:
-                    continue
-                ids = list(ox_store.quads_for_pattern(owner, id_term, None, graph))
-                lines = list(ox_store.quads_for_pattern(owner, line_term, None, graph))
-                if ids and lines:
-                    found.add((int(str(lines[0].object.value)), 1, int(str(ids[0].object.value)), target))  # type: ignore[union-attr]
+        targets = " ".join(f"(<{prefix}i{t}> {t})" for t in sorted(unreadable))
+        # From each unreadable instance back to the instances referring to it, directly or
+        # through the blank nodes of lists and typed values (SPARQL: it runs on any store).
+        rows = store.query(f"""
+            PREFIX rdf: <{T.RDF}> PREFIX p21: <{P21_NS}>
+            SELECT DISTINCT ?id ?line ?n WHERE {{ GRAPH {ox.NamedNode(where)} {{
+              VALUES (?target ?n) {{ {targets} }}
+              {{ ?owner ?p ?target }} UNION {{
+                ?cell rdf:first|p21:value ?target .
+                ?cell (^rdf:rest|^rdf:first|^p21:value)* ?head .
+                ?owner ?p ?head . FILTER(!isBlank(?owner)) }}
+              ?owner p21:id ?id ; p21:line ?line . }} }}""")
+        found.update((int(row["line"].value), 1, int(row["id"].value), int(row["n"].value)) for row in rows)
         return [Diagnostic.make("P21-UNRESOLVED-REF", self.name, line, column, p21_id,
                                 f"refers to #{target}, which could not be read (see its syntax error)")
                 for line, column, p21_id, target in sorted(found)]
@@ -282,7 +280,7 @@ def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | 
     yield from _Load.of_file(path, lenient, base_iri, None).chunks()
 
 
-def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
+def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
               progress: Progress | None = None) -> LoadResult:
     """Load one Part 21 file as the named graph ``base_iri`` (default: from the file name).
 
@@ -293,14 +291,14 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
     return _run(store, _Load.of_file(path, lenient, base_iri, progress))
 
 
-def load_source(store: GraphStore, source: Source, *, lenient: bool = False,
+def load_source(store: Store, source: Source, *, lenient: bool = False,
                 progress: Progress | None = None) -> LoadResult:
     """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input."""
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
     return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress))
 
 
-def _run(store: GraphStore, job: _Load) -> LoadResult:
+def _run(store: Store, job: _Load) -> LoadResult:
     extra: list[Diagnostic] = []
 
     def before_commit(target: Callable[[str], str]) -> None:

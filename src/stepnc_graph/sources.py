@@ -18,7 +18,7 @@ from urllib.parse import quote
 import pyoxigraph as ox
 
 from stepnc_graph.naming import DATA_BASE, instance_prefix
-from stepnc_graph.store import GraphStore
+from stepnc_graph.store import Store
 
 #: file name endings of Part 21 programs, compared case-insensitively
 SUFFIXES = (".stp", ".step", ".p21")
@@ -106,7 +106,7 @@ def _refuse_repeats(sources: list[Source]) -> None:
                           "--base-iri")
 
 
-def refuse_replacing_other_files(store: GraphStore, sources: Sequence[Source]) -> None:
+def refuse_replacing_other_files(store: Store, sources: Sequence[Source]) -> None:
     """:class:`SourceError` when a graph of ``sources`` already holds a different file."""
     for s in sources:
         if not store.has_graph(s.graph):

@@ -57,7 +57,7 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import pyoxigraph as ox
 
@@ -85,6 +85,38 @@ _LOCK_POLL = 0.2
 
 def default_store_path() -> Path:
     return Path(os.environ.get(STORE_ENV) or DEFAULT_STORE)
+
+
+class Store(Protocol):
+    """What loading, export, info and queries need of a store: the embedded
+    :class:`GraphStore` or a :class:`~stepnc_graph.remote.RemoteStore`."""
+
+    path: Path | None
+    last_removal: str | None
+
+    def replace_graph(self, graph: str, chunks: Iterable[str],
+                      before_commit: Callable[[Callable[[str], str]], None] | None = None,
+                      companions: Sequence[str] = ()) -> None: ...
+
+    def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool: ...
+
+    def add_ntriples(self, graph: str, text: str) -> None: ...
+
+    def graphs(self) -> list[str]: ...
+
+    def has_graph(self, graph: str) -> bool: ...
+
+    def query(self, sparql: str, **kwargs: Any) -> Any: ...
+
+    def count(self, graph: str | None = None) -> int: ...
+
+    def quads(self, graph: str | None = None) -> Iterator[ox.Quad]: ...
+
+    def close(self) -> None: ...
+
+    def __enter__(self) -> Any: ...
+
+    def __exit__(self, *exc: object) -> None: ...
 
 
 class StoreError(Exception):
@@ -602,9 +634,15 @@ class GraphStore:
     def _replace_in_memory(self, graph: str, chunks: Iterable[str],
                            before_commit: Callable[[Callable[[str], str]], None] | None,
                            companions: Sequence[str]) -> None:
-        """Every graph is written under a staging name, then all are moved into place
-        in one SPARQL Update transaction (rollback: drop the staging graphs)."""
-        staging = {name: STAGING + uuid.uuid4().hex for name in (graph, *companions)}
+        """A new graph loads in place (rollback: drop it and its companions); a replacement is
+        written under staging names, then moved into place in one SPARQL Update transaction.
+
+        Moving copies quad by quad, so a new graph (the usual case of a throw-away store)
+        skips it.
+        """
+        names = (graph, *companions)
+        replacing = any(self._db.contains_named_graph(ox.NamedNode(n)) for n in names)
+        staging = {n: STAGING + uuid.uuid4().hex if replacing else n for n in names}
         try:
             self._bulk_load(staging[graph], chunks)
             if before_commit is not None:
@@ -613,8 +651,9 @@ class GraphStore:
             for name in staging.values():
                 self._db.remove_graph(ox.NamedNode(name))
             raise
-        self._db.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; MOVE SILENT GRAPH <{tmp}> TO "
-                                   f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
+        if replacing:
+            self._db.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; MOVE SILENT GRAPH <{tmp}> TO "
+                                       f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
 
     def add_ntriples(self, graph: str, text: str) -> None:
         """Add a few N-Triples to ``graph`` (for use inside ``before_commit``)."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import json
 import sys
+from dataclasses import dataclass
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -23,7 +24,7 @@ import click
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from stepnc_graph.store import GraphStore, Writer
+    from stepnc_graph.store import Store, Writer
 
 EXIT_OK, EXIT_NONCONFORMING, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
@@ -168,9 +169,64 @@ def with_store(f: F) -> F:
     return store_option(memory_option(f))
 
 
-def open_writer(store_path: Path | None, memory: bool = False, wait: bool = False) -> GraphStore:
+@dataclass(frozen=True)
+class RemoteOptions:
+    """``--endpoint`` and the URLs of servers that split query, update and graph store."""
+
+    endpoint: str | None
+    query_url: str | None
+    update_url: str | None
+    store_url: str | None
+
+    def wanted(self, store_path: Path | None, memory: bool) -> bool:
+        """An endpoint was asked for (``$STEPNC_GRAPH_ENDPOINT`` counts unless --store or --memory is given)."""
+        import os
+
+        from stepnc_graph.remote import ENDPOINT_ENV
+
+        given = bool(self.endpoint or self.query_url)
+        if given and (store_path is not None or memory):
+            raise UsageProblem("--endpoint and --store/--memory exclude each other")
+        return given or (store_path is None and not memory and bool(os.environ.get(ENDPOINT_ENV)))
+
+    def open(self) -> Store:
+        from stepnc_graph.remote import open_remote
+
+        return open_remote(self.endpoint, self.query_url, self.update_url, self.store_url)
+
+
+def with_endpoint(f: F) -> F:
+    """``--endpoint URL`` (or ``$STEPNC_GRAPH_ENDPOINT``): a remote SPARQL 1.1 store instead of
+    ``--store``; the options arrive as one ``remote`` argument."""
+
+    @functools.wraps(f)
+    def wrapper(*args: Any, endpoint: str | None, query_url: str | None, update_url: str | None,
+                store_url: str | None, **kwargs: Any) -> Any:
+        return f(*args, remote=RemoteOptions(endpoint, query_url, update_url, store_url), **kwargs)
+
+    options = [
+        click.option("--endpoint", default=None, metavar="URL",
+                     help="A SPARQL 1.1 store to use instead of --store (default: $STEPNC_GRAPH_ENDPOINT): "
+                          "URL/query, URL/update and URL/store (Oxigraph's layout) unless given below. "
+                          "Credentials: $STEPNC_GRAPH_ENDPOINT_TOKEN, or _USER and _PASSWORD."),
+        click.option("--query-url", default=None, metavar="URL", help="The SPARQL query endpoint, if not URL/query."),
+        click.option("--update-url", default=None, metavar="URL",
+                     help="The SPARQL update endpoint, if not URL/update."),
+        click.option("--store-url", default=None, metavar="URL",
+                     help="The Graph Store Protocol endpoint, if not URL/store."),
+    ]
+    for option in reversed(options):
+        wrapper = option(wrapper)
+    return wrapper  # type: ignore[return-value]
+
+
+def open_writer(store_path: Path | None, memory: bool = False, wait: bool = False,
+                remote: RemoteOptions | None = None) -> Store:
     """The store, opened for writing (created if need be); it is busy: exit 2, or wait with a note."""
     from stepnc_graph.api import open_store
+
+    if remote is not None and remote.wanted(store_path, memory):
+        return remote.open()
 
     def waiting(writer: Writer) -> None:
         err.print(f"waiting for the store's writer ({escape(str(writer))}) to finish ...")
@@ -178,10 +234,12 @@ def open_writer(store_path: Path | None, memory: bool = False, wait: bool = Fals
     return open_store(store_path, memory, wait=wait, on_wait=waiting)
 
 
-def open_reader(store_path: Path | None) -> GraphStore:
+def open_reader(store_path: Path | None, remote: RemoteOptions | None = None) -> Store:
     """The store's last published state, read-only; never created, never waits for a writer."""
     from stepnc_graph.api import open_store
 
+    if remote is not None and remote.wanted(store_path, False):
+        return remote.open()
     return open_store(store_path, readonly=True)
 
 

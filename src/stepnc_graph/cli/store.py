@@ -30,15 +30,17 @@ from stepnc_graph.cli.common import (
     reports_errors,
     store_option,
     wait_option,
+    with_endpoint,
     with_store,
 )
 
 if TYPE_CHECKING:
     from rich.progress import Progress
 
+    from stepnc_graph.cli.common import RemoteOptions
     from stepnc_graph.loader import LoadResult
     from stepnc_graph.sources import Source
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store import Store
 
 _COLOURS = {"error": "red", "warning": "yellow"}
 
@@ -46,6 +48,7 @@ _COLOURS = {"error": "red", "warning": "yellow"}
 @click.command("load")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(allow_dash=True, path_type=str))
 @with_store
+@with_endpoint
 @wait_option
 @click.option("--lenient", is_flag=True,
               help="Recover from syntax errors instance by instance and report them, instead of stopping.")
@@ -57,8 +60,8 @@ _COLOURS = {"error": "red", "warning": "yellow"}
               help="Replace a graph even when it holds a different file (same name, other folder).")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
-def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, wait: bool, lenient: bool,
-             base_iri: str | None, replace: bool, fmt: str) -> None:
+def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, remote: RemoteOptions, wait: bool,
+             lenient: bool, base_iri: str | None, replace: bool, fmt: str) -> None:
     """Load Part 21 programs into the store, one named graph per file.
 
     INPUTS are files, directories (every .stp/.step/.p21 file under them,
@@ -74,14 +77,14 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, wai
     from stepnc_graph.sources import plan_sources, refuse_replacing_other_files
 
     sources = plan_sources(inputs, base_iri)
-    with open_writer(store_path, memory, wait) as store:
+    with open_writer(store_path, memory, wait, remote) as store:
         if not replace:
             refuse_replacing_other_files(store, sources)
         results, failures = _load_all(store, sources, lenient, fmt)
     _report_loads(results, failures, fmt)
 
 
-def _load_all(store: GraphStore, sources: list[Source], lenient: bool,
+def _load_all(store: Store, sources: list[Source], lenient: bool,
               fmt: str) -> tuple[list[LoadResult], list[BaseException]]:
     """Load each source in turn; a file that fails is reported and the others go on."""
     from stepnc_graph.cli.common import user_errors
@@ -167,6 +170,7 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 
 @click.command("export")
 @store_option
+@with_endpoint
 @click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
                                             "or the only one.")
 @click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "p21"]), required=True,
@@ -174,7 +178,8 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write here instead of standard output.")
 @reports_errors
-def export_cmd(store_path: Path | None, graph: str | None, fmt: str, output: Path | None) -> None:
+def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None, fmt: str,
+               output: Path | None) -> None:
     """Export one graph or the whole store as RDF or as Part 21.
 
     Exports are deterministic: the same graph gives the same bytes. Exit 2 for
@@ -185,7 +190,7 @@ def export_cmd(store_path: Path | None, graph: str | None, fmt: str, output: Pat
     _check_graph(graph)
     if output is not None and not output.parent.is_dir():
         raise UsageProblem(f"-o {output}: the directory {output.parent} does not exist")
-    with open_reader(store_path) as store:
+    with open_reader(store_path, remote) as store:
         data = export(store, fmt, graph)
     if output is None:
         sys.stdout.buffer.write(data)
@@ -198,9 +203,10 @@ def export_cmd(store_path: Path | None, graph: str | None, fmt: str, output: Pat
 @click.command("unload")
 @click.argument("graphs", nargs=-1, required=True)
 @store_option
+@with_endpoint
 @wait_option
 @reports_errors
-def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, wait: bool) -> None:
+def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteOptions, wait: bool) -> None:
     """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`).
 
     The space they took is given back. Exit 2 if a graph is not in the store
@@ -210,7 +216,7 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, wait: bool) -> 
 
     for g in graphs:
         _check_graph(g, "graph")
-    with open_writer(store_path, wait=wait) as store:
+    with open_writer(store_path, wait=wait, remote=remote) as store:
         missing = [g for g in graphs if not unload(store, g)]
     for g in graphs:
         if g not in missing:
@@ -223,20 +229,20 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, wait: bool) -> 
 
 @click.command("info")
 @store_option
+@with_endpoint
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
-def info_cmd(store_path: Path | None, fmt: str) -> None:
+def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
     """List the loaded files' graphs in the store, with their source file and counts."""
     from stepnc_graph.api import info
-    from stepnc_graph.store import default_store_path
 
-    with open_reader(store_path) as store:
+    with open_reader(store_path, remote) as store:
         rows = info(store)
-        location = store.path
+        location = str(store.path.resolve()) if store.path else str(getattr(store, "endpoint", "memory"))
     if fmt == "json":
-        click.echo(json.dumps({"store": str(location), "graphs": [r.asdict() for r in rows]}, indent=2))
+        click.echo(json.dumps({"store": location, "graphs": [r.asdict() for r in rows]}, indent=2))
         return
-    out.print(f"{len(rows)} graph(s) in {escape(str((location or default_store_path()).resolve()))}")
+    out.print(f"{len(rows)} graph(s) in {escape(location)}")
     for r in rows:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
         out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
