@@ -102,3 +102,48 @@ def test_expected_findings(program: Path) -> None:
             "severity": r.severity} for r in report.results]
     assert got == want["results"], report.to_text()
     assert report.conforms is want["conforms"]
+
+
+def _cli(*args: str) -> Any:
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    return CliRunner().invoke(main, list(args))
+
+
+def test_cli_exit_codes_and_formats(tmp_path: Path) -> None:
+    example = str(ROOT / "examples" / "shaft_two_setups.stp")
+    failing = str(VFIX / "fail_shapes.stp")
+    assert _cli("validate", example).exit_code == 0
+    res = _cli("validate", "--format", "json", failing)
+    assert res.exit_code == 1
+    doc = json.loads(res.output)
+    assert doc["conforms"] is False and {"severity", "p21_id", "entity", "line", "path", "value", "message", "rule",
+                                          "clause", "focus"} <= set(doc["results"][0])
+    ttl = _cli("validate", "--format", "turtle", failing)
+    report = Graph().parse(data=ttl.output, format="turtle")
+    assert len(list(report.objects(None, SH.result))) == len(doc["results"])
+    assert _cli("validate").exit_code == 2  # neither files nor a store
+    bad = tmp_path / "bad.ttl"
+    bad.write_text("this is not turtle")
+    assert _cli("validate", "--shapes", str(bad), example).exit_code == 2
+    broken = tmp_path / "broken.stp"
+    broken.write_text("ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\n#1=PROJECT('x' ;\nENDSEC;\nEND-ISO-10303-21;\n")
+    assert _cli("validate", "--strict", str(broken)).exit_code == 2
+    assert _cli("validate", str(broken)).exit_code == 1  # lenient: the syntax error is a result
+
+
+def test_extra_shapes_and_store_mode(tmp_path: Path) -> None:
+    """An organisation's own rule (--shapes) runs beside the shipped ones; a store is validated in place."""
+    rule = tmp_path / "org.ttl"
+    rule.write_text("""@prefix sh: <http://www.w3.org/ns/shacl#> . @prefix stepnc: <https://w3id.org/stepnc-graph/iso14649#> .
+<urn:org:feed> a sh:NodeShape ; sh:targetClass stepnc:technology ;
+  sh:property [ sh:path stepnc:technology.feedrate ; sh:maxInclusive 0.2 ; sh:severity sh:Warning ] .""")
+    with api.open_store(tmp_path / "store") as store:
+        api.load(store, [ROOT / "examples" / "shaft_two_setups.stp"])
+        report = validate(store, extra_shapes=[rule])
+    assert report.conforms  # warnings do not fail a program
+    assert [(r.p21_id, r.severity, r.value) for r in report.results] == [(70, "Warning", "0.25")]
+    assert _cli("validate", "--store", str(tmp_path / "store"), "--shapes", str(rule),
+                "--severity", "violation").output.count("line") == 0

@@ -10,6 +10,6 @@ The Python API (see :mod:`stepnc_graph.api`)::
 
 __version__ = "0.1.0"
 
-from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload  # noqa: E402
+from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload, validate  # noqa: E402
 
-__all__ = ["GraphInfo", "LoadResult", "__version__", "export", "info", "load", "open_store", "unload"]
+__all__ = ["GraphInfo", "LoadResult", "__version__", "export", "info", "load", "open_store", "unload", "validate"]

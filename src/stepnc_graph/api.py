@@ -18,8 +18,9 @@ from stepnc_graph.export import export
 from stepnc_graph.loader import LoadResult, Progress, load_file
 from stepnc_graph.naming import P21_NS, default_graph_iri, instance_prefix
 from stepnc_graph.store import GraphStore, default_store_path
+from stepnc_graph.validate import validate
 
-__all__ = ["GraphInfo", "LoadResult", "export", "graph_iri_for", "info", "load", "open_store", "unload"]
+__all__ = ["GraphInfo", "LoadResult", "export", "graph_iri_for", "info", "load", "open_store", "unload", "validate"]
 
 
 def open_store(path: str | Path | None = None, memory: bool = False) -> GraphStore:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import click
 
 from stepnc_graph import __version__
-from stepnc_graph.cli import ontology, schema, store
+from stepnc_graph.cli import ontology, schema, store, validate
 from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_NONCONFORMING, EXIT_OK
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_NONCONFORMING", "EXIT_OK", "main"]
@@ -34,5 +34,6 @@ def main() -> None:
 
 main.add_command(ontology.ontology)
 main.add_command(schema.schema)
+main.add_command(validate.validate_cmd)
 for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd):
     main.add_command(command)
