@@ -67,7 +67,7 @@ def reference(program: Path) -> tuple[set[Key], set[Key]]:
     for res in ours.results:
         if res.component.startswith("loader:"):
             continue
-        path = res.path_iri or (f"{res.path}" if res.path else None)
+        path = res.path_iri
         mine.add((_focus(res.focus), path, res.component, f"{SH}{res.severity}", res.shape))
     return theirs, mine
 

@@ -13,6 +13,7 @@ the files loaded here are results too (severity Violation).
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterable, Sequence
 from functools import lru_cache
@@ -131,6 +132,13 @@ def _diagnostic_result(graph: str, d: Diagnostic) -> Result:
                   "ISO 10303-21", f"loader:{d.code}")
 
 
+def _readable_path(path: str) -> str:
+    """``<...#entity.attr>/<...#e2.attr2>`` as ``attr/attr2``: attribute names, other IRIs by local name."""
+    text = re.sub(rf"<{re.escape(STEPNC_NS)}[^.>]*\.([^>]*)>", r"\1", path)
+    text = re.sub(r"<[^>]*[#/]([^>#/]*)>", r"\1", text)
+    return text[1:-1] if text.startswith("(") and text.endswith(")") and text.count("(") == 1 else text
+
+
 def _local(term: str) -> str:
     """A readable name for a term: the local name of a vocabulary IRI."""
     if term.startswith("<") and term.endswith(">"):
@@ -195,14 +203,12 @@ class _Describer:
         labels = (shape, c.parent) if c.parent else (shape,)
         clause = next((literal_text(v) for s in labels if (v := self.g.value(s, f"<{P21_NS}isoClause>"))), None)
         value = self.describe(row.value) if row.value is not None else None
-        path = _local(c.path_term) if c.path_term and c.path_term.startswith("<") else c.path
-        if path and "." in path and c.path_term and c.path_term.startswith(f"<{STEPNC_NS}"):
-            path = path.split(".", 1)[1]
+        path = _readable_path(c.path) if c.path else None
         return Result(
             severity=_local(c.severity), graph=self.graph, focus=focus.strip("<>"), p21_id=ident, entity=entity,
             line=line, path=path, value=value, message=self.message(row, value), rule=self.rule(c),
             clause=clause, component=c.component.strip("<>"), shape=shape.strip("<>") if shape.startswith("<") else None,
-            path_iri=c.path_term if c.path_term and c.path_term.startswith("<") else None,
+            path_iri=c.path,
             value_term=str(row.value) if row.value is not None else None)
 
     def describe(self, value: object) -> str:

@@ -34,7 +34,7 @@ class Result:
     clause: str | None
     component: str
     shape: str | None = None
-    path_iri: str | None = field(default=None, compare=False)  # the sh:resultPath term (N-Triples)
+    path_iri: str | None = field(default=None, compare=False)  # the path in SPARQL syntax (<iri> when simple)
     value_term: str | None = field(default=None, compare=False)  # the sh:value term (N-Triples)
 
     def asdict(self) -> dict[str, Any]:
@@ -105,7 +105,7 @@ class ValidationReport:
             parts = [f"sh:focusNode {_term(r.focus)}", f"sh:resultSeverity sh:{r.severity}",
                      f"sh:sourceConstraintComponent {_term(r.component)}",
                      f"sh:resultMessage {_literal(r.message)}"]
-            if r.path_iri and r.path_iri.startswith("<"):
+            if r.path_iri and r.path_iri.startswith("<") and ">" not in r.path_iri[:-1]:
                 parts.append(f"sh:resultPath {r.path_iri}")
             if r.value_term is not None:
                 parts.append(f"sh:value {r.value_term}")
