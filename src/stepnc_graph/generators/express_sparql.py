@@ -669,7 +669,13 @@ class _Compiler:
         raise Untranslatable(f"{name} is neither an attribute nor an item of {other.type.name}")
 
     def at_least(self, agg: _Agg, k: int, n: int | None = None) -> str:
-        """The aggregate has ``k`` or more members (list cells, for a LIST)."""
+        """The aggregate has ``k`` or more members (list cells, for a LIST).
+
+        Written as an OPTIONAL binding a witness, tested with ``bound``, not as
+        ``EXISTS``: the same truth value, and stores (Oxigraph among them) join
+        an OPTIONAL with the focus node already bound, while they may evaluate
+        an EXISTS over a property path for every node of the graph.
+        """
         if k <= 0:
             return "true"
         if k > MAX_COUNT:
@@ -679,8 +685,9 @@ class _Compiler:
         parts = [agg.members(self, m, c) for m, c in names]
         keys = [c if agg.is_list else m for m, c in names]
         distinct = [f"!sameTerm({a}, {b})" for a, b in itertools.combinations(keys, 2)]
-        return "EXISTS { " + " ".join(f"{{ {p} }}" for p in parts) + (
-            f" FILTER({' && '.join(distinct)})" if distinct else "") + " }"
+        body = " ".join(f"{{ {p} }}" for p in parts) + (f" FILTER({' && '.join(distinct)})" if distinct else "")
+        self.scope.optionals.append(f"OPTIONAL {{ {body} }}")
+        return f"bound({names[0][0]})"
 
     def size_test(self, agg_expr: Any, op: Any, n: int) -> str:
         agg = self.value(agg_expr)

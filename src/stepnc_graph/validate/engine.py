@@ -148,6 +148,15 @@ class Compiler:
         values = f"?this {path} ?value ." if path is not None else "BIND(?this AS ?value)"
         for param in VALUE_PARAMS:
             for arg in self.g.objects(shape, sh(param)):
+                if param == "node":
+                    # one query per way the nested shape can fail: Oxigraph evaluates
+                    # FILTER (NOT) EXISTS over property paths without the outer
+                    # binding (quadratic), positive joins and OPTIONALs with it
+                    patterns = self.witnesses(arg, value)
+                    if patterns is not None:
+                        for w in patterns:
+                            yield make(param, f"SELECT DISTINCT ?this ?value WHERE {{ {focus} {values} {w} }}")
+                        continue
                 ok = self.value_ok(param, arg, value, shape, path)
                 if param == "hasValue" and path is not None:
                     yield make(param, f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} {arg} }} }}")
@@ -245,6 +254,67 @@ class Compiler:
             counts = " + ".join(f"IF({m}, 1, 0)" for m in members)
             return f"(({counts}) = 1)" if members else "false"
         raise ShapesError(f"unsupported constraint sh:{param}")
+
+    def witnesses(self, shape: str, v: str) -> list[str] | None:
+        """Graph patterns, one per way node ``v`` can fail ``shape``: ``v`` fails iff one matches.
+
+        None when the shape needs a logical combination (not/and/or/xone) or
+        counts above one, which stay boolean expressions (:meth:`conforms`).
+        """
+        self.check_known(shape)
+        if self.deactivated(shape):
+            return []
+        out: list[str] = []
+        path_term = self.g.value(shape, sh("path"))
+        for param in VALUE_PARAMS:
+            for arg in self.g.objects(shape, sh(param)):
+                if path_term is not None:
+                    continue
+                if param in ("not", "and", "or", "xone"):
+                    return None
+                if param == "node":
+                    inner = self.witnesses(arg, v)
+                    if inner is None:
+                        return None
+                    out += inner
+                else:
+                    out.append(f"FILTER(!({self.value_ok(param, arg, v, shape, None)}))")
+        if path_term is not None:
+            path = self.path(path_term)
+            for arg in self.g.objects(shape, sh("minCount")):
+                n = int(literal_text(arg))
+                if n > 1:
+                    return None
+                if n == 1:
+                    x = self.fresh("m")
+                    out.append(f"OPTIONAL {{ {v} {path} {x} }} FILTER(!bound({x}))")
+            for arg in self.g.objects(shape, sh("maxCount")):
+                xs = [self.fresh("c") for _ in range(int(literal_text(arg)) + 1)]
+                distinct = " && ".join(f"!sameTerm({a}, {b})" for a, b in itertools.combinations(xs, 2))
+                out.append(" ".join(f"{v} {path} {x} ." for x in xs) + (f" FILTER({distinct})" if distinct else ""))
+            for param in VALUE_PARAMS:
+                for arg in self.g.objects(shape, sh(param)):
+                    x = self.fresh("pv")
+                    if param in ("not", "and", "or", "xone"):
+                        return None
+                    if param == "hasValue":
+                        m = self.fresh("m")
+                        out.append(f"OPTIONAL {{ {v} {path} {m} FILTER(sameTerm({m}, {arg})) }} FILTER(!bound({m}))")
+                    elif param == "node":
+                        inner = self.witnesses(arg, x)
+                        if inner is None:
+                            return None
+                        out += [f"{v} {path} {x} . {w}" for w in inner]
+                    else:
+                        out.append(f"{v} {path} {x} . FILTER(!({self.value_ok(param, arg, x, shape, path)}))")
+        for node in self.g.objects(shape, sh("sparql")):
+            out.append(self.sparql_body(node, v, self.path(path_term) if path_term else None))
+        for prop in self.g.objects(shape, sh("property")):
+            inner = self.witnesses(prop, v)
+            if inner is None:
+                return None
+            out += inner
+        return out
 
     def conforms(self, shape: str, v: str) -> str:
         """SPARQL boolean: node ``v`` conforms to ``shape`` (every constraint, property shapes included)."""
@@ -367,6 +437,7 @@ def run(store: ox.Store, graph: str, checks: list[Check]) -> tuple[list[Row], in
     g = ox.NamedNode(graph)
     present = {str(s[0]) for s in store.query("SELECT DISTINCT ?t WHERE { ?s a ?t }", default_graph=g)}  # type: ignore[union-attr]
     rows: list[Row] = []
+    seen: set[tuple[str, str, str, str]] = set()
     ran = 0
     for check in checks:
         focus = focus_pattern(check, present)
@@ -379,5 +450,9 @@ def run(store: ox.Store, graph: str, checks: list[Check]) -> tuple[list[Row], in
             focus_node = solution["this"]
             if focus_node is None:
                 continue
-            rows.append(Row(check, focus_node, solution["value"] if has_value else None))
+            value = solution["value"] if has_value else None
+            key = (check.shape, check.constraint, str(focus_node), str(value))
+            if key not in seen:  # a nested shape's ways to fail can match the same value twice
+                seen.add(key)
+                rows.append(Row(check, focus_node, value))
     return rows, ran
