@@ -89,3 +89,18 @@ def test_core_form_for_exists_and_comparison() -> None:
     assert (prop, SH.minCount, Literal(1)) in g
     assert g.value(prop, SH.minInclusive).toPython() == 0
     assert (SHAPES["facing_rough-wr1"], SH.targetClass, None) in g
+
+
+def test_ontology_stats_lists_rules_and_reasons() -> None:
+    import json
+
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    res = CliRunner().invoke(main, ["ontology", "stats", "--format", "json"])
+    doc = json.loads(res.output)
+    turning = next(r for r in doc["where_rules"] if r["schema"] == "turning_schema")
+    assert (turning["translated"], turning["total"]) == (4, 4)
+    machining = next(r for r in doc["where_rules"] if r["schema"] == "machining_schema")
+    assert [u["rule"] for u in machining["untranslated"]] == ["countersunk_hole.wr4"]

@@ -57,15 +57,17 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
 
     The two counts must be equal (100 % coverage); exit 1 if they are not.
     """
-    from stepnc_graph.stats import ontology_stats
+    from stepnc_graph.stats import ontology_stats, rule_stats
 
     try:
         rows = ontology_stats(root or data_root())
+        rules = rule_stats(root or data_root())
     except (ExpressSyntaxError, SchemaError) as exc:
         fail_input(exc, fmt)
     complete = all(r.complete for r in rows)
     if fmt == "json":
-        click.echo(json.dumps({"complete": complete, "schemas": [r.asdict() for r in rows]}, indent=2))
+        click.echo(json.dumps({"complete": complete, "schemas": [r.asdict() for r in rows],
+                               "where_rules": [r.asdict() for r in rules]}, indent=2))
     else:
         table = Table(title="ISO 14649 ontology coverage (EXPRESS / OWL)")
         for col in ("schema", "entities", "types", "attributes", "complete"):
@@ -77,6 +79,16 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
                                  f"{sum(getattr(r, 'owl_' + k) for r in rows)}"
                                  for k in ("entities", "types", "attributes")), "yes" if complete else "NO")
         out.print(table)
+        rule_table = Table(title="WHERE rules translated to SHACL (the others are listed below)")
+        for col in ("schema", "translated / total"):
+            rule_table.add_column(col, justify="left" if col == "schema" else "right")
+        for rs in rules:
+            rule_table.add_row(rs.schema, f"{rs.translated} / {rs.total}")
+        rule_table.add_row("total", f"{sum(rs.translated for rs in rules)} / {sum(rs.total for rs in rules)}")
+        out.print(rule_table)
+        for rs in rules:
+            for rule, why in rs.untranslated:
+                out.print(f"  not translated: {rs.schema} {rule}: {why}")
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
 
 

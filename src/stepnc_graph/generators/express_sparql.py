@@ -17,8 +17,9 @@ focus nodes for which ``!(rule)`` is true -- those where the rule is FALSE.
 raises :class:`Untranslatable` with the reason; the generator lists those rules
 (``stepnc-graph ontology stats``) instead of emitting an approximation.
 
-The queries obey pySHACL's restrictions on SHACL-SPARQL (no VALUES, no
-sub-SELECT), so the reference engine and stepnc-graph's own run the same text.
+The queries obey pySHACL's restrictions on SHACL-SPARQL (no VALUES; a sub-SELECT
+only where it does not mention ``$this``), so the reference engine and
+stepnc-graph's own run the same text.
 """
 
 from __future__ import annotations
@@ -312,19 +313,23 @@ class _Compiler:
         whose order nothing fixes; ISO 10303-43's rule compatible_dimension makes
         all its contexts agree, and the query checks each of them.
         """
-        # the item is reached inside the OPTIONAL, from an always-bound root: an
+        # The item is reached inside the OPTIONAL, from an always-bound root (an
         # item variable bound by an earlier OPTIONAL could be unbound here and
-        # would then match anything
-        item = base.root if not base.steps else self.fresh("item")
-        reach = f"{base.root} {'/'.join(base.steps)} {item} ." if base.steps else ""
+        # would then match anything). The representations' (item, dim) pairs are
+        # an uncorrelated sub-SELECT: evaluated once, not walked up from every item.
+        item = self.fresh("item")
+        reach = (f"{base.root} {'/'.join(base.steps)} {item} ." if base.steps
+                 else f"FILTER(sameTerm({item}, {base.root}))")
         dim = self.fresh("dim")
         rep, top, ctx = self.fresh("rep"), self.fresh("top"), self.fresh("ctx")
         items = f"<{self.n.attribute('representation', 'items')}>"
         context = f"<{self.n.attribute('representation', 'context_of_items')}>"
         csd = f"<{self.n.attribute('geometric_representation_context', 'coordinate_space_dimension')}>"
         chain = self.using_chain(top, item)
-        self.scope.optionals.append(
-            f"OPTIONAL {{ {reach} {rep} {items} {top} . {chain} {rep} {context} {ctx} . {ctx} {csd} {dim} }}")
+        pairs = (f"{{ SELECT DISTINCT {item} {dim} WHERE {{ {rep} {items} {top} . {chain} {rep} {context} {ctx} . "
+                 f"{ctx} {csd} {dim} }} }}")
+        self.scope.optionals.append(f"OPTIONAL {{ {pairs} {reach} }}" if not base.steps
+                                    else f"OPTIONAL {{ {reach} {pairs} }}")
         self.notes.append("dim: the coordinate_space_dimension of every representation using the item")
         return _Scalar(dim, SimpleType(BaseType.INTEGER))
 
@@ -455,6 +460,8 @@ class _Compiler:
             return _Scalar('"' + str(e.value).replace("\\", "\\\\").replace('"', '\\"') + '"', None)
         if isinstance(e, ast.BinaryExpr) and e.op in (ast.BinaryOp.ADD, ast.BinaryOp.SUBTRACT,
                                                        ast.BinaryOp.MULTIPLY, ast.BinaryOp.REAL_DIVIDE):
+            if isinstance(e.left, ast.AggregateLiteral) or isinstance(e.right, ast.AggregateLiteral):
+                raise Untranslatable("an aggregate literal in arithmetic (set intersection with TYPEOF)")
             left, right = self.scalar(e.left), self.scalar(e.right)
             return _Scalar(f"({left} {_OPS[e.op]} {right})", None)
         if isinstance(e, ast.Call) and self.callee(e) == "sizeof":
