@@ -147,3 +147,15 @@ def test_extra_shapes_and_store_mode(tmp_path: Path) -> None:
     assert [(r.p21_id, r.severity, r.value) for r in report.results] == [(70, "Warning", "0.25")]
     assert _cli("validate", "--store", str(tmp_path / "store"), "--shapes", str(rule),
                 "--severity", "violation").output.count("line") == 0
+
+
+def test_oneof_on_a_complex_instance(tmp_path: Path) -> None:
+    """ONEOF checks are skipped only while no instance has two types: a complex instance is checked."""
+    text = (ROOT / "examples" / "shaft_two_setups.stp").read_text()
+    end = text.rindex("ENDSEC;")
+    program = tmp_path / "complex.stp"
+    program.write_text(text[:end] + "#400=(CARTESIAN_POINT((0.,0.,0.))DIRECTION('D',(0.,0.,1.))"
+                       "GEOMETRIC_REPRESENTATION_ITEM()POINT('P')REPRESENTATION_ITEM());\n" + text[end:])
+    theirs, mine = reference(program)
+    assert mine == theirs
+    assert any(key[0].endswith("/i400") and "oneof" in (key[4] or "") for key in mine)

@@ -41,6 +41,7 @@ import pyoxigraph as ox
 from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
+P21_NS = "https://w3id.org/stepnc-graph/p21#"
 FOCUS = "FOCUS_PATTERN"
 TARGETS = ("targetClass", "targetNode", "targetSubjectsOf", "targetObjectsOf")
 VALUE_PARAMS = ("class", "datatype", "nodeKind", "in", "hasValue", "minInclusive", "maxInclusive",
@@ -84,6 +85,8 @@ class Check:
     other_targets: tuple[str, ...] = ()  # patterns binding ?this for the other kinds of target
     parent: str | None = None  # the node shape holding a property shape
     sparql_node: str | None = None  # the sh:sparql node (for its message)
+    #: can fail only on a node with two rdf:types (sh:not of classes disjoint from the targets: ONEOF)
+    multi_typed_only: bool = False
 
 
 class Compiler:
@@ -140,9 +143,10 @@ class Compiler:
         path_term = self.g.value(shape, sh("path"))
         path = self.path(path_term) if path_term is not None else None
 
-        def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None) -> Check:
+        def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None,
+                 multi: bool = False) -> Check:
             return Check(shape, constraint, component or f"<{SH}{COMPONENT[constraint]}>", path, path_term,
-                         severity, query, classes, closures, others, parent, sparql_node)
+                         severity, query, classes, closures, others, parent, sparql_node, multi)
 
         value = "?value"
         values = f"?this {path} ?value ." if path is not None else "BIND(?this AS ?value)"
@@ -158,6 +162,9 @@ class Compiler:
                             yield make(param, f"SELECT DISTINCT ?this ?value WHERE {{ {focus} {values} {w} }}")
                         continue
                 ok = self.value_ok(param, arg, value, shape, path)
+                if param == "not" and path is None and not others and self.excluded_classes(arg, classes):
+                    yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", multi=True)
+                    continue
                 if param == "hasValue" and path is not None:
                     yield make(param, f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} {arg} }} }}")
                     continue
@@ -184,6 +191,24 @@ class Compiler:
         for prop in self.g.objects(shape, sh("property")):
             if not self.deactivated(prop):
                 yield from self.shape_checks(prop, target_shape, shape)
+
+    def excluded_classes(self, shape: str, targets: frozenset[str]) -> bool:
+        """``shape`` is ``sh:class`` or ``sh:or`` of ``sh:class`` only, over classes disjoint from ``targets``.
+
+        Then ``sh:not shape`` on a target node fails only if that node has a
+        second type: with one rdf:type per node the check cannot fail.
+        """
+        alternatives = [shape]
+        ors = self.g.objects(shape, sh("or"))
+        if ors:
+            alternatives = self.g.items(ors[0])
+        for alt in [shape] if not ors else alternatives:
+            preds = set(self.g.predicates(alt)) - {RDF_TYPE}
+            if preds != {sh("class")} or self.g.closure(self.g.objects(alt, sh("class"))[0]) & targets:
+                return False
+        if ors and set(self.g.predicates(shape)) - {RDF_TYPE} != {sh("or")}:
+            return False
+        return bool(targets)
 
     def check_known(self, shape: str) -> None:
         for p in self.g.predicates(shape):
@@ -436,12 +461,15 @@ def run(store: ox.Store, graph: str, checks: list[Check]) -> tuple[list[Row], in
     """Run the checks whose targets occur in ``graph``; the rows, and how many checks ran."""
     g = ox.NamedNode(graph)
     present = {str(s[0]) for s in store.query("SELECT DISTINCT ?t WHERE { ?s a ?t }", default_graph=g)}  # type: ignore[union-attr]
+    # a node with two types that a class target can reach: not the file node (p21:ExchangeStructure, prov:Entity)
+    multi_typed = bool(store.query(f"ASK {{ ?s a ?t1 , ?t2 FILTER(!sameTerm(?t1, ?t2)) "
+                                   f"FILTER NOT EXISTS {{ ?s a <{P21_NS}ExchangeStructure> }} }}", default_graph=g))
     rows: list[Row] = []
     seen: set[tuple[str, str, str, str]] = set()
     ran = 0
     for check in checks:
         focus = focus_pattern(check, present)
-        if focus is None:
+        if focus is None or (check.multi_typed_only and not multi_typed):
             continue
         ran += 1
         results = store.query(check.query.replace(FOCUS, focus), default_graph=g)
