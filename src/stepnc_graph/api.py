@@ -19,9 +19,10 @@ from stepnc_graph.loader import LoadResult, Progress, load_source
 from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
 from stepnc_graph.naming import P21_NS, derived_graph_iri
 from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path
+from stepnc_graph.validate import validate
 
 __all__ = ["GraphInfo", "LoadResult", "SourceError", "StoreBusy", "StoreError", "export", "info",
-           "load", "open_store", "unload"]
+           "load", "open_store", "unload", "validate"]
 
 
 def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,

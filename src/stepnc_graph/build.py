@@ -1,6 +1,6 @@
 """Regenerate (or check) every generated artefact from ``ontology/express/``.
 
-Paths are relative to a project root: ``ontology/*.ttl``,
+Paths are relative to a project root: ``ontology/*.ttl``, ``shapes/*.ttl``,
 ``ontology/compiled-model.json`` (the resolved model and mapping plans that
 commands read instead of the EXPRESS, see :mod:`stepnc_graph.schema.cache`),
 ``docs/ontology.html`` and ``src/stepnc_graph/vocab.py``.
@@ -16,6 +16,7 @@ from stepnc_graph.generators.jsonld import JsonLdContextGenerator
 from stepnc_graph.generators.owl import OwlGenerator
 from stepnc_graph.generators.p21 import P21VocabularyGenerator
 from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
+from stepnc_graph.generators.shacl import ShapesGenerator
 from stepnc_graph.mapping.plan import Plans
 from stepnc_graph.schema import cache
 from stepnc_graph.schema.catalog import load_catalog_model
@@ -41,6 +42,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"ontology/{rel}"] = text
     digest = cache.express_digest(catalog.directory)
     out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, Plans(model, naming).dump(), digest)
+    for rel, text in ShapesGenerator(model, catalog, naming).outputs().items():
+        out[f"shapes/{rel}"] = text
     for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():
         out[f"docs/{rel}"] = text
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
@@ -53,7 +56,7 @@ def build(root: Path, check: bool = False) -> BuildResult:
     files = generate(root / "ontology" / "express")
     written, unchanged, stale = [], [], []
     for rel, text in sorted(files.items()):
-        if not rel.startswith("ontology/") and not (root / rel.split("/")[0]).is_dir():
+        if not rel.startswith(("ontology/", "shapes/")) and not (root / rel.split("/")[0]).is_dir():
             continue  # an installed data directory has no src/ or docs/ to refresh
         path = root / rel
         current = path.read_text(encoding="utf-8") if path.exists() else None

@@ -274,13 +274,15 @@ class RemoteStore:
                 for t in ox.parse(response.raw, ox.RdfFormat.N_TRIPLES):
                     yield ox.Quad(t.subject, t.predicate, t.object, g)
 
-    def local_copy(self, graph: str | None = None) -> Any:
-        """An in-memory :class:`GraphStore` holding ``graph`` (or every graph): for work that
-        walks a graph node by node (canonical exports), which one request per node would make slow."""
+    def local_copy(self, graphs: str | Sequence[str] | None = None) -> Any:
+        """An in-memory :class:`GraphStore` holding ``graphs`` (one, several, or every graph): for
+        work that walks a graph node by node (canonical exports, validation), which one request
+        per node would make slow. It holds the graphs in memory."""
         from stepnc_graph.store import GraphStore
 
         copy = GraphStore(None)
-        copy.oxigraph.bulk_extend(self.quads(graph))
+        for name in [graphs] if isinstance(graphs, str) or graphs is None else graphs:
+            copy.oxigraph.bulk_extend(self.quads(name))
         return copy
 
     @property

@@ -74,3 +74,32 @@ def ontology_stats(root: Path) -> list[SchemaStats]:
             owl_attributes=row[2],
         ))
     return out
+
+
+@dataclass(frozen=True)
+class RuleStats:
+    """WHERE rules of one schema: how many became SHACL, and why the others did not."""
+
+    schema: str
+    total: int
+    translated: int
+    untranslated: tuple[tuple[str, str], ...]  # ("entity.wr1", reason)
+
+    def asdict(self) -> dict[str, Any]:
+        return {"schema": self.schema, "total": self.total, "translated": self.translated,
+                "untranslated": [{"rule": r, "reason": why} for r, why in self.untranslated]}
+
+
+def rule_stats(root: Path) -> list[RuleStats]:
+    """Per schema, the WHERE rules the shapes generator translated (see generators/shacl.py)."""
+    from stepnc_graph.generators.shacl import ShapesGenerator
+
+    catalog, model = load_catalog_model(root / "ontology" / "express")
+    coverage = ShapesGenerator(model, catalog).coverage()
+    out = []
+    for name in sorted(model.schemas):
+        rules = [r for r in coverage if r.schema == name]
+        if rules:
+            out.append(RuleStats(name, len(rules), sum(r.translated for r in rules),
+                                 tuple((f"{r.owner}.{r.label}", r.reason or "") for r in rules if not r.translated)))
+    return out

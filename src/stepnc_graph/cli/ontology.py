@@ -10,10 +10,11 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import click
 
-from stepnc_graph.cli.common import EXIT_NONCONFORMING, EXIT_OK, err, fail_input, out, root_option
+from stepnc_graph.cli.common import EXIT_NONCONFORMING, EXIT_OK, err, escape, fail_input, out, root_option
 from stepnc_graph.resources import data_root
 
 
@@ -64,15 +65,17 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
 
     from stepnc_graph.express import ExpressSyntaxError
     from stepnc_graph.schema import SchemaError
-    from stepnc_graph.stats import ontology_stats
+    from stepnc_graph.stats import ontology_stats, rule_stats
 
     try:
         rows = ontology_stats(root or data_root())
+        rules = rule_stats(root or data_root())
     except (ExpressSyntaxError, SchemaError) as exc:
         fail_input(exc, fmt)
     complete = all(r.complete for r in rows)
     if fmt == "json":
-        click.echo(json.dumps({"complete": complete, "schemas": [r.asdict() for r in rows]}, indent=2))
+        click.echo(json.dumps({"complete": complete, "schemas": [r.asdict() for r in rows],
+                               "where_rules": [r.asdict() for r in rules]}, indent=2))
     else:
         table = Table(title="ISO 14649 ontology coverage (EXPRESS / OWL)")
         for col in ("schema", "entities", "types", "attributes", "complete"):
@@ -83,12 +86,27 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
         table.add_row("total", *(f"{sum(getattr(r, 'express_' + k) for r in rows)} / "
                                  f"{sum(getattr(r, 'owl_' + k) for r in rows)}"
                                  for k in ("entities", "types", "attributes")), "yes" if complete else "NO")
-        if out.is_terminal:
-            out.print(table)
-        else:  # piped: wide enough never to cut a schema name (rich would use 80 columns)
-            from rich.console import Console
-
-            Console(file=sys.stdout, width=200, highlight=False).print(table)
+        _print_table(table)
+        rule_table = Table(title="WHERE rules translated to SHACL (the others are listed below)")
+        for col in ("schema", "translated / total"):
+            rule_table.add_column(col, justify="left" if col == "schema" else "right", no_wrap=True)
+        for rs in rules:
+            rule_table.add_row(rs.schema, f"{rs.translated} / {rs.total}")
+        rule_table.add_row("total", f"{sum(rs.translated for rs in rules)} / {sum(rs.total for rs in rules)}")
+        _print_table(rule_table)
+        for rs in rules:
+            for rule, why in rs.untranslated:
+                out.print(f"  not translated: {rs.schema} {rule}: {escape(why)}")
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
+
+
+def _print_table(table: Any) -> None:
+    """A table on the terminal, or wide enough never to cut a name when piped (rich would use 80 columns)."""
+    if out.is_terminal:
+        out.print(table)
+    else:
+        from rich.console import Console
+
+        Console(file=sys.stdout, width=200, highlight=False).print(table)
 
 

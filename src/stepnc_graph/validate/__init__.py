@@ -1,0 +1,292 @@
+"""Validate Part 21 programs against the generated shapes, the process rules and your own.
+
+    import stepnc_graph as sg
+    report = sg.validate(["part.stp"])                 # load into a throw-away store, then check
+    report = sg.validate(store, graphs=[graph_iri])   # or check what a store holds
+    print(report.conforms, report.to_text())
+
+Shapes come from ``shapes/`` (generated ``*.ttl`` and the hand-written
+``shapes/process/*.ttl``) plus any ``extra_shapes`` files; they are compiled
+once per process (:mod:`.engine`) and run by the store. Loader diagnostics of
+the files loaded here are results too (severity Violation).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Iterable, Sequence
+from functools import lru_cache
+from pathlib import Path
+
+import pyoxigraph as ox
+
+from stepnc_graph.naming import P21_NS
+from stepnc_graph.part21.diagnostics import Diagnostic
+from stepnc_graph.validate.engine import Check, Compiler, Row, run
+from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
+from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
+
+__all__ = ["Result", "ShapesError", "ValidationReport", "shape_files", "validate"]
+
+SHAPES_NS = "https://w3id.org/stepnc-graph/shapes#"
+STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
+RDFS_LABEL = "<http://www.w3.org/2000/01/rdf-schema#label>"
+RDFS_COMMENT = "<http://www.w3.org/2000/01/rdf-schema#comment>"
+#: loader codes a shape re-checks (reported once, by the shape)
+COVERED_BY_SHAPES = {"P21-ABSTRACT"}
+
+
+def shape_files(shapes_dir: Path | None = None, process: bool = True) -> list[Path]:
+    """The shipped shapes: generated files, then the process rules."""
+    if shapes_dir is None:
+        from stepnc_graph.resources import shapes_dir as default
+
+        shapes_dir = default()
+    files = sorted(shapes_dir.glob("*.ttl"))
+    if process:
+        files += sorted((shapes_dir / "process").glob("*.ttl"))
+    return files
+
+
+@lru_cache(maxsize=8)
+def _compiled(files: tuple[tuple[str, float], ...]) -> tuple[ShapesGraph, tuple[Check, ...]]:
+    graph = ShapesGraph()
+    for name, _mtime in files:
+        graph.add_file(Path(name))
+    return graph, tuple(Compiler(graph).checks())
+
+
+def compile_shapes(files: Sequence[Path]) -> tuple[ShapesGraph, tuple[Check, ...]]:
+    """Parse and compile shapes files (cached per process while the files are unchanged)."""
+    for f in files:
+        if not f.is_file():
+            raise ShapesError(f"{f}: no such shapes file")
+    return _compiled(tuple((str(f), f.stat().st_mtime) for f in files))
+
+
+def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shapes: Sequence[str | Path] = (),
+             severity: str = "Info", lenient: bool = True, process: bool = True,
+             shapes_dir: Path | None = None) -> ValidationReport:
+    """Validate Part 21 files (loaded into a throw-away store) or graphs of a store.
+
+    ``source`` is a :class:`~stepnc_graph.store.GraphStore`, a
+    :class:`~stepnc_graph.remote.RemoteStore` (whose graphs are copied into
+    memory and checked here) or an iterable of paths. ``severity`` is the lowest severity reported. Raises
+    :class:`ShapesError` for unreadable shapes and, with ``lenient=False``,
+    :class:`~stepnc_graph.part21.Part21SyntaxError` for a file that does not parse.
+    """
+    from stepnc_graph.store import GraphStore
+
+    started = time.perf_counter()
+    files = shape_files(shapes_dir, process) + [Path(p) for p in extra_shapes]
+    shapes, checks = compile_shapes(files)
+    level = severity.capitalize()
+    if level not in SEVERITIES:
+        raise ValueError(f"severity must be one of {', '.join(s.lower() for s in SEVERITIES)}")
+    if isinstance(source, GraphStore):
+        report = _validate_store(source, graphs, shapes, list(checks), {})
+    elif hasattr(source, "local_copy"):  # a remote store: its graphs are copied here and checked
+        targets = list(graphs) if graphs is not None else program_graphs(source)
+        with source.local_copy(targets) as copy:
+            report = _validate_store(copy, targets, shapes, list(checks), {})
+    else:
+        from stepnc_graph.api import load, open_store
+
+        paths = list(source)  # type: ignore[call-overload]
+        with open_store(memory=True) as store:
+            loaded = load(store, paths, lenient=lenient)
+            diagnostics = {r.graph: r.diagnostics for r in loaded}
+            report = _validate_store(store, [r.graph for r in loaded], shapes, list(checks), diagnostics)
+    report.seconds = time.perf_counter() - started
+    return report.at_least(level)
+
+
+def program_graphs(store: object) -> list[str]:
+    """The graphs of a store that hold a loaded Part 21 file."""
+    rows = store.query(f"SELECT DISTINCT ?g WHERE {{ GRAPH ?g {{ ?g a <{P21_NS}ExchangeStructure> }} }}")  # type: ignore[attr-defined]
+    return sorted(str(r[0].value) for r in rows)
+
+
+def _validate_store(store: object, graphs: Sequence[str] | None, shapes: ShapesGraph, checks: list[Check],
+                    diagnostics: dict[str, list[Diagnostic]]) -> ValidationReport:
+    targets = list(graphs) if graphs is not None else program_graphs(store)
+    results: list[Result] = []
+    ran = 0
+    oxstore: ox.Store = store.oxigraph  # type: ignore[attr-defined]
+    for graph in targets:
+        if not oxstore.contains_named_graph(ox.NamedNode(graph)):
+            raise ValueError(f"no graph {graph} in the store")
+        rows, n = run(oxstore, graph, checks)
+        ran += n
+        describer = _Describer(oxstore, graph, shapes)
+        results += describer.results(rows)
+        if graph in diagnostics:
+            results += [_diagnostic_result(graph, d) for d in diagnostics[graph] if d.code not in COVERED_BY_SHAPES]
+        else:
+            results += describer.raw_instances()
+    results.sort(key=lambda r: r.sort_key)
+    return ValidationReport(results, targets, ran)
+
+
+def _diagnostic_result(graph: str, d: Diagnostic) -> Result:
+    from stepnc_graph.naming import instance_iri
+
+    focus = instance_iri(graph, d.p21_id) if d.p21_id is not None else graph
+    return Result("Violation", graph, focus, d.p21_id, None, d.line, None, None, d.message, d.code,
+                  "ISO 10303-21", f"loader:{d.code}")
+
+
+def _readable_path(path: str) -> str:
+    """``<...#entity.attr>/<...#e2.attr2>`` as ``attr/attr2``: attribute names, other IRIs by local name."""
+    text = re.sub(rf"<{re.escape(STEPNC_NS)}[^.>]*\.([^>]*)>", r"\1", path)
+    text = re.sub(r"<[^>]*[#/]([^>#/]*)>", r"\1", text)
+    return text[1:-1] if text.startswith("(") and text.endswith(")") and text.count("(") == 1 else text
+
+
+def _local(term: str) -> str:
+    """A readable name for a term: the local name of a vocabulary IRI."""
+    if term.startswith("<") and term.endswith(">"):
+        iri = term[1:-1]
+        for ns in (STEPNC_NS, SHAPES_NS, P21_NS, SH, "http://www.w3.org/2001/XMLSchema#"):
+            if iri.startswith(ns):
+                return iri[len(ns):]
+        return iri
+    return term
+
+
+class _Describer:
+    """Turns raw rows into results: Part 21 #id, line and entity of focus nodes and values, messages."""
+
+    def __init__(self, store: ox.Store, graph: str, shapes: ShapesGraph) -> None:
+        self.store = store
+        self.graph = graph
+        self.g = shapes
+        self.info: dict[str, tuple[int | None, int | None, str | None]] = {}
+
+    def lookup(self, terms: Iterable[str]) -> None:
+        """#id, line and entity name of instance IRIs, in one query."""
+        wanted = sorted({t for t in terms if t.startswith("<") and t not in self.info})
+        for start in range(0, len(wanted), 2000):
+            chunk = " ".join(wanted[start:start + 2000])
+            rows = self.store.query(
+                f"SELECT ?s ?id ?line ?t WHERE {{ VALUES ?s {{ {chunk} }} ?s <{P21_NS}id> ?id ; "
+                f"<{P21_NS}line> ?line . OPTIONAL {{ ?s a ?t }} }}", default_graph=ox.NamedNode(self.graph))
+            found: dict[str, tuple[int, int, list[str]]] = {}
+            for r in rows:  # type: ignore[union-attr]
+                key = str(r[0])
+                entry = found.setdefault(key, (int(r[1].value), int(r[2].value), []))
+                if r[3] is not None:
+                    entry[2].append(_local(str(r[3])))
+            for key, (ident, line, types) in found.items():
+                self.info[key] = (ident, line, "+".join(sorted(types)) or None)
+
+    def owner(self, node: ox.BlankNode) -> str | None:
+        """The instance holding a blank node (a list cell or typed value)."""
+        current: object = node
+        g = ox.NamedNode(self.graph)
+        for _ in range(10000):
+            holder = next(iter(self.store.quads_for_pattern(None, None, current, g)), None)  # type: ignore[arg-type]
+            if holder is None:
+                return None
+            current = holder.subject
+            if isinstance(current, ox.NamedNode):
+                return str(current)
+        return None
+
+    def results(self, rows: list[Row]) -> list[Result]:
+        focus_terms = {str(r.focus) if not isinstance(r.focus, ox.BlankNode) else self.owner(r.focus) or "" for r in rows}
+        self.lookup(focus_terms | {str(r.value) for r in rows if isinstance(r.value, ox.NamedNode)})
+        return [self.result(r) for r in rows]
+
+    def result(self, row: Row) -> Result:
+        c = row.check
+        focus = str(row.focus)
+        where = self.owner(row.focus) if isinstance(row.focus, ox.BlankNode) else focus
+        ident, line, entity = self.info.get(where or "", (None, None, None))
+        shape = c.shape
+        labels = (shape, c.parent) if c.parent else (shape,)
+        clause = next((literal_text(v) for s in labels if (v := self.g.value(s, f"<{P21_NS}isoClause>"))), None)
+        value = self.describe(row.value) if row.value is not None else None
+        path = _readable_path(c.path) if c.path else None
+        return Result(
+            severity=_local(c.severity), graph=self.graph, focus=focus.strip("<>"), p21_id=ident, entity=entity,
+            line=line, path=path, value=value, message=self.message(row, value), rule=self.rule(c),
+            clause=clause, component=c.component.strip("<>"), shape=shape.strip("<>") if shape.startswith("<") else None,
+            path_iri=c.path,
+            value_term=str(row.value) if row.value is not None else None)
+
+    def describe(self, value: object) -> str:
+        text = str(value)
+        if isinstance(value, ox.Literal):
+            return value.value
+        if text in self.info:
+            ident, _, entity = self.info[text]
+            return f"#{ident} {(entity or '').upper()}".strip()
+        if isinstance(value, ox.BlankNode):
+            return "a list or typed value"
+        return _local(text)
+
+    def rule(self, c: Check) -> str | None:
+        for s in (c.shape, c.parent):
+            if s is None:
+                continue
+            label = self.g.value(s, f"<{SHAPES_NS}rule>")
+            text = self.g.value(s, f"<{SHAPES_NS}expressText>")
+            name = self.g.value(s, RDFS_LABEL)
+            if label and text and name:
+                return f"{literal_text(name)}: {literal_text(text)}"
+            kind = self.g.value(s, f"<{P21_NS}expressType>")
+            if name and kind:
+                return f"{literal_text(name)} : {literal_text(kind)}"
+            if name:
+                return literal_text(name)
+        return None
+
+    def message(self, row: Row, value: str | None) -> str:
+        """A plain-language message for the failed constraint."""
+        c = row.check
+        found = f", found {value}" if value is not None else ""
+        arg = next(iter(self.g.objects(c.shape, sh(c.constraint))), None) if c.constraint != "sparql" else None
+        if c.constraint == "minCount" and arg is not None:
+            n = int(literal_text(arg))
+            return "required, found none" if n == 1 else f"at least {n} values required"
+        if c.constraint == "maxCount" and arg is not None:
+            own = self.g.value(c.shape, sh("message"))
+            return literal_text(own) if own else f"at most {literal_text(arg)} value(s) allowed"
+        if c.constraint == "class" and arg is not None:
+            return f"must be a {_local(arg)}{found}"
+        if c.constraint == "datatype" and arg is not None:
+            return f"must be an {_local(arg)} literal{found}"
+        if c.constraint == "in" and arg is not None:
+            items = ", ".join(_local(i).split(".")[-1] for i in self.g.items(arg))
+            return f"must be one of {items}{found}"
+        if c.constraint in ("minInclusive", "maxInclusive", "minExclusive", "maxExclusive") and arg is not None:
+            op = {"minInclusive": ">=", "maxInclusive": "<=", "minExclusive": ">", "maxExclusive": "<"}[c.constraint]
+            return f"must be {op} {literal_text(arg)}{found}"
+        if c.constraint == "node" and arg is not None:
+            comment = self.g.value(arg, RDFS_COMMENT)
+            if comment:
+                text = literal_text(comment).rstrip(".")
+                return f"must be a{text[1:]}" if text.startswith("A ") else text
+            kind = self.g.value(c.shape, f"<{P21_NS}expressType>")
+            return f"list members must fit {literal_text(kind)}" if kind else "does not conform to a nested shape"
+        for s in (c.sparql_node, c.shape, c.parent):
+            own = self.g.value(s, sh("message")) if s else None
+            if own:
+                return literal_text(own)
+        return f"{_local(c.component)} not satisfied{found}"
+
+    def raw_instances(self) -> list[Result]:
+        """Instances the loader kept raw (a store validated without its load's diagnostics)."""
+        rows = self.store.query(
+            f"SELECT ?s ?id ?line ?name WHERE {{ ?s {RDF_TYPE} <{P21_NS}RawInstance> ; <{P21_NS}id> ?id ; "
+            f"<{P21_NS}line> ?line . OPTIONAL {{ ?s <{P21_NS}entityName> ?name }} }}",
+            default_graph=ox.NamedNode(self.graph))
+        out = []
+        for r in rows:  # type: ignore[union-attr]
+            name = r[3].value if r[3] is not None else None
+            out.append(Result("Violation", self.graph, r[0].value, int(r[1].value), name, int(r[2].value), None,
+                              None, "kept raw by the loader: it does not fit the schema (load it again to see why)",
+                              "P21 raw instance", "ISO 10303-21", "loader:P21-RAW"))
+        return out

@@ -1,0 +1,140 @@
+"""Validation results and their three renderings: text, JSON, Turtle (``sh:ValidationReport``).
+
+A result says where (graph, focus IRI, Part 21 ``#id``, entity, line,
+attribute), what (offending value, a plain-language message), why (the rule:
+an attribute's EXPRESS type, a WHERE rule's label and text, or a process
+rule's name) and the ISO clause it comes from.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+SEVERITIES = ("Violation", "Warning", "Info")
+SH_NS = "http://www.w3.org/ns/shacl#"
+
+
+@dataclass(frozen=True)
+class Result:
+    """One finding. ``component`` is the SHACL constraint component IRI, or ``loader:<code>``."""
+
+    severity: str
+    graph: str
+    focus: str
+    p21_id: int | None
+    entity: str | None
+    line: int | None
+    path: str | None
+    value: str | None
+    message: str
+    rule: str | None
+    clause: str | None
+    component: str
+    shape: str | None = None
+    path_iri: str | None = field(default=None, compare=False)  # the path in SPARQL syntax (<iri> when simple)
+    value_term: str | None = field(default=None, compare=False)  # the sh:value term (N-Triples)
+
+    def asdict(self) -> dict[str, Any]:
+        return {k: v for k, v in asdict(self).items() if k not in ("path_iri", "value_term")}
+
+    @property
+    def sort_key(self) -> tuple[Any, ...]:
+        return (self.graph, self.line if self.line is not None else 0, self.p21_id or 0,
+                SEVERITIES.index(self.severity), self.path or "", self.message)
+
+
+@dataclass
+class ValidationReport:
+    """Every result of one validation, in report order (graph, line, #id)."""
+
+    results: list[Result]
+    graphs: list[str]
+    checks_run: int = 0
+    seconds: float = 0.0
+
+    @property
+    def conforms(self) -> bool:
+        """No Violation: warnings and infos do not fail a program (see docs/validation.md)."""
+        return not any(r.severity == "Violation" for r in self.results)
+
+    def at_least(self, severity: str) -> "ValidationReport":
+        """The results of ``severity`` or more severe."""
+        rank = SEVERITIES.index(severity)
+        return ValidationReport([r for r in self.results if SEVERITIES.index(r.severity) <= rank], self.graphs,
+                                self.checks_run, self.seconds)
+
+    def counts(self) -> dict[str, int]:
+        return {s: sum(r.severity == s for r in self.results) for s in SEVERITIES}
+
+    # -- renderings -----------------------------------------------------------------------
+
+    def to_json(self) -> str:
+        doc = {"conforms": self.conforms, "graphs": self.graphs, "counts": self.counts(),
+               "results": [r.asdict() for r in self.results]}
+        return json.dumps(doc, indent=2, ensure_ascii=False)
+
+    def to_text(self) -> str:
+        """Grouped by instance, sorted by line: ``line 23  #20 FACING_ROUGH  allowance: ...  [clause, rule]``."""
+        lines: list[str] = []
+        for graph in self.graphs:
+            mine = [r for r in self.results if r.graph == graph]
+            c = {s: sum(r.severity == s for r in mine) for s in SEVERITIES}
+            lines.append(f"{graph}: {'conforms' if not c['Violation'] else 'does not conform'} "
+                         f"({c['Violation']} violation(s), {c['Warning']} warning(s), {c['Info']} info)")
+            for key, group in _by_instance(mine):
+                line, ident, entity = key
+                head = f"line {line:<5}" if line is not None else "          "
+                lead = f"  {head} {f'#{ident}' if ident is not None else '':<7} {(entity or '').upper()}"
+                for i, r in enumerate(group):
+                    where = f"{r.path}: " if r.path else ""
+                    cite = ", ".join(x for x in (r.clause, r.rule) if x)
+                    tag = "" if r.severity == "Violation" else f"{r.severity.lower()}: "
+                    text = f"{tag}{where}{r.message}{f'  [{cite}]' if cite else ''}"
+                    lines.append(f"{lead}  {text}" if i == 0 else f"{' ' * len(lead)}  {text}")
+        return "\n".join(lines) + "\n"
+
+    def to_turtle(self) -> str:
+        """The standard SHACL validation report."""
+        out = ["@prefix sh: <http://www.w3.org/ns/shacl#> .",
+               "@prefix p21: <https://w3id.org/stepnc-graph/p21#> .", "",
+               f"[] a sh:ValidationReport ; sh:conforms {'true' if self.conforms else 'false'}"]
+        for r in self.results:
+            parts = [f"sh:focusNode {_term(r.focus)}", f"sh:resultSeverity sh:{r.severity}",
+                     f"sh:sourceConstraintComponent {_term(r.component)}",
+                     f"sh:resultMessage {_literal(r.message)}"]
+            if r.path_iri and r.path_iri.startswith("<") and ">" not in r.path_iri[:-1]:
+                parts.append(f"sh:resultPath {r.path_iri}")
+            if r.value_term is not None:
+                parts.append(f"sh:value {r.value_term}")
+            if r.shape:
+                parts.append(f"sh:sourceShape {_term(r.shape)}")
+            if r.p21_id is not None:
+                parts.append(f"p21:id {r.p21_id}")
+            if r.line is not None:
+                parts.append(f"p21:line {r.line}")
+            out.append(" ;\n  sh:result [ " + " ;\n      ".join(parts) + " ]")
+        return "\n".join(out) + " .\n"
+
+
+def _term(value: str) -> str:
+    if value.startswith(("<", "_:")):
+        return value
+    if value.startswith("urn:bnode:"):
+        return f"_:{value[10:]}"
+    if value.startswith("loader:"):
+        return f"<https://w3id.org/stepnc-graph/p21#diagnostic/{value[7:]}>"
+    return f"<{value}>"
+
+
+def _literal(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def _by_instance(results: Iterable[Result]) -> list[tuple[tuple[int | None, int | None, str | None], list[Result]]]:
+    groups: dict[tuple[int | None, int | None, str | None], list[Result]] = {}
+    for r in sorted(results, key=lambda r: r.sort_key):
+        groups.setdefault((r.line, r.p21_id, r.entity), []).append(r)
+    return list(groups.items())

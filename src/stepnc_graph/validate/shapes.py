@@ -1,0 +1,122 @@
+"""A shapes graph as the engine reads it: triples indexed by subject, and the class hierarchy.
+
+Read with pyoxigraph's Turtle parser (Rust; no rdflib at run time, which keeps
+``validate`` of a small program fast). Terms are kept in N-Triples syntax
+(``<iri>``, ``"lex"^^<dt>``, ``_:b1``), which is also their SPARQL syntax.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Iterable
+from pathlib import Path
+
+import pyoxigraph as ox
+
+SH = "http://www.w3.org/ns/shacl#"
+RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
+RDFS = "http://www.w3.org/2000/01/rdf-schema#"
+
+
+def sh(name: str) -> str:
+    return f"<{SH}{name}>"
+
+
+RDF_TYPE, RDF_FIRST, RDF_REST, RDF_NIL = (f"<{RDF}{n}>" for n in ("type", "first", "rest", "nil"))
+SUBCLASS = f"<{RDFS}subClassOf>"
+
+
+class ShapesError(Exception):
+    """A shapes file that cannot be read or uses SHACL the engine does not run."""
+
+
+class ShapesGraph:
+    """Triples of the shapes (and support) files; ``objects(s, p)`` in file order."""
+
+    def __init__(self) -> None:
+        self._sp: dict[tuple[str, str], list[str]] = defaultdict(list)
+        self._po: dict[tuple[str, str], list[str]] = defaultdict(list)
+        self._preds: dict[str, list[str]] = defaultdict(list)
+        self.subclasses: dict[str, set[str]] = defaultdict(set)  # class -> direct subclasses
+        self.instances: dict[str, set[str]] = defaultdict(set)  # class -> individuals typed in these files
+        self._blank_prefix = 0
+
+    def add_file(self, path: Path) -> None:
+        """Add a Turtle file (blank node labels kept apart per file)."""
+        self._blank_prefix += 1
+        try:
+            triples = list(ox.parse(path=str(path), format=ox.RdfFormat.TURTLE))
+        except (SyntaxError, OSError, ValueError) as exc:
+            raise ShapesError(f"{path}: {exc}") from None
+        self.add(triples, f"f{self._blank_prefix}")
+
+    def add(self, triples: Iterable[ox.Triple | ox.Quad], tag: str) -> None:
+        for t in triples:
+            s, p, o = self.term(t.subject, tag), self.term(t.predicate, tag), self.term(t.object, tag)
+            if (s, p) not in self._sp:
+                self._preds[s].append(p)
+            self._sp[(s, p)].append(o)
+            self._po[(p, o)].append(s)
+            if p == SUBCLASS:
+                self.subclasses[o].add(s)
+            elif p == RDF_TYPE:
+                self.instances[o].add(s)
+
+    @staticmethod
+    def term(node: object, tag: str) -> str:
+        if isinstance(node, ox.BlankNode):
+            return f"_:{tag}_{node.value}"
+        return str(node)
+
+    # -- reading --------------------------------------------------------------------------------
+
+    def objects(self, s: str, p: str) -> list[str]:
+        return self._sp.get((s, p), [])
+
+    def predicates(self, s: str) -> list[str]:
+        return self._preds.get(s, [])
+
+    def value(self, s: str, p: str) -> str | None:
+        values = self._sp.get((s, p))
+        return values[0] if values else None
+
+    def subjects(self, p: str, o: str | None = None) -> list[str]:
+        if o is not None:
+            return self._po.get((p, o), [])
+        return sorted({s for (s, pred) in self._sp if pred == p})
+
+    def items(self, head: str) -> list[str]:
+        """The members of an RDF list."""
+        out: list[str] = []
+        seen: set[str] = set()
+        while head != RDF_NIL and head not in seen:
+            seen.add(head)
+            first = self.value(head, RDF_FIRST)
+            if first is None:
+                raise ShapesError(f"malformed RDF list at {head}")
+            out.append(first)
+            head = self.value(head, RDF_REST) or RDF_NIL
+        return out
+
+    def closure(self, cls: str) -> set[str]:
+        """``cls`` and every class below it through rdfs:subClassOf."""
+        out = {cls}
+        stack = [cls]
+        while stack:
+            for sub in self.subclasses.get(stack.pop(), ()):
+                if sub not in out:
+                    out.add(sub)
+                    stack.append(sub)
+        return out
+
+    def typed_individuals(self, classes: Iterable[str]) -> set[str]:
+        """Individuals these files type with one of ``classes`` (enumeration items)."""
+        return {i for c in classes for i in self.instances.get(c, ())}
+
+
+def literal_text(term: str) -> str:
+    """The lexical form of a literal in N-Triples syntax."""
+    if not term.startswith('"'):
+        return term
+    end = term.rindex('"')
+    return term[1:end].replace('\\"', '"').replace("\\\\", "\\")

@@ -1,0 +1,161 @@
+"""The validator: pySHACL (the reference) finds the same results on every fixture; expected findings."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pyoxigraph as ox
+import pytest
+from rdflib import RDF, SH, BNode, Graph, URIRef
+from rdflib.collection import Collection
+
+from stepnc_graph import api
+from stepnc_graph.validate import shape_files, validate
+
+ROOT = Path(__file__).resolve().parent.parent
+FIX = Path(__file__).parent / "fixtures"
+VFIX = FIX / "validate"
+PROGRAMS = [ROOT / "examples" / "shaft_two_setups.stp", *sorted((FIX / "p21").glob("*_seed_annex_*.stp")),
+            *sorted(VFIX.glob("*.stp"))]
+
+Key = tuple[str, str | None, str, str, str | None]
+
+
+def _path_text(g: Graph, node: Any) -> str:
+    """A SHACL path as SPARQL path text, the way stepnc-graph's engine writes it."""
+    if isinstance(node, URIRef):
+        return f"<{node}>"
+    if (node, RDF.first, None) in g:
+        return "(" + "/".join(_path_text(g, x) for x in Collection(g, node)) + ")"
+    for kind, fmt in ((SH.inversePath, "^{}"), (SH.zeroOrMorePath, "{}*"), (SH.oneOrMorePath, "{}+"),
+                      (SH.zeroOrOnePath, "{}?")):
+        inner = g.value(node, kind)
+        if inner is not None:
+            return "(" + fmt.format(_path_text(g, inner)) + ")"
+    return "(" + "|".join(_path_text(g, x) for x in Collection(g, g.value(node, SH.alternativePath))) + ")"
+
+
+def _focus(term: Any) -> str:
+    return "_:blank" if isinstance(term, BNode) or str(term).startswith("_:") else str(term)
+
+
+def reference(program: Path) -> tuple[set[Key], set[Key]]:
+    """(pySHACL's results, stepnc-graph's results) on the same shapes and data, as comparable keys."""
+    import pyshacl
+
+    files = shape_files()
+    with api.open_store(memory=True) as store:
+        [loaded] = api.load(store, [program], lenient=True)
+        data = Graph().parse(data=store.dump(ox.RdfFormat.N_TRIPLES, loaded.graph).decode(), format="nt")
+        ours = validate(store, graphs=[loaded.graph])
+    data.parse(ROOT / "shapes" / "support.ttl")
+    shapes = Graph()
+    for f in files:
+        if f.name != "support.ttl":
+            shapes.parse(f)
+    _, report, _ = pyshacl.validate(data, shacl_graph=shapes, inference="none", advanced=False)
+    theirs: set[Key] = set()
+    for r in report.objects(None, SH.result):  # top-level results (sh:detail holds nested ones)
+        path = report.value(r, SH.resultPath)
+        shape = report.value(r, SH.sourceShape)
+        theirs.add((_focus(report.value(r, SH.focusNode)), _path_text(report, path) if path is not None else None,
+                    str(report.value(r, SH.sourceConstraintComponent)), str(report.value(r, SH.resultSeverity)),
+                    str(shape) if isinstance(shape, URIRef) else None))
+    mine: set[Key] = set()
+    for res in ours.results:
+        if res.component.startswith("loader:"):
+            continue
+        path = res.path_iri
+        mine.add((_focus(res.focus), path, res.component, f"{SH}{res.severity}", res.shape))
+    return theirs, mine
+
+
+@pytest.mark.parametrize("program", PROGRAMS, ids=lambda p: p.name)
+def test_same_results_as_pyshacl(program: Path) -> None:
+    theirs, mine = reference(program)
+    assert mine == theirs, {"only pySHACL": theirs - mine, "only stepnc-graph": mine - theirs}
+
+
+def test_example_and_corrected_annex_d_conform() -> None:
+    report = validate([ROOT / "examples" / "shaft_two_setups.stp", FIX / "p21" / "pass_seed_annex_d.stp"])
+    assert report.conforms, report.to_text()
+    assert not report.results
+
+
+def test_corrected_annex_e_has_zero_corner_radii() -> None:
+    """The corrected Annex E program still gives two SQUARE_U_PROFILEs corner radii of 0, which
+    positive_length_measure (theoretical_size of toleranced_length_measure) forbids: found, not hidden."""
+    report = validate([FIX / "p21" / "pass_seed_annex_e.stp"])
+    assert [(r.p21_id, r.path, r.value) for r in report.results] == [
+        (234, "theoretical_size", "0"), (235, "theoretical_size", "0"),
+        (244, "theoretical_size", "0"), (245, "theoretical_size", "0")]
+
+
+@pytest.mark.parametrize("program", sorted(VFIX.glob("fail_*.stp")), ids=lambda p: p.name)
+def test_expected_findings(program: Path) -> None:
+    """Each fail_ fixture lists its findings: #id, attribute path and shape (or loader code)."""
+    want = json.loads(program.with_suffix(".expected.json").read_text())
+    report = validate([program])
+    got = [{"p21_id": r.p21_id, "path": r.path, "shape": (r.shape or r.component).rsplit("#", 1)[-1],
+            "severity": r.severity} for r in report.results]
+    assert got == want["results"], report.to_text()
+    assert report.conforms is want["conforms"]
+
+
+def _cli(*args: str) -> Any:
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    return CliRunner().invoke(main, list(args))
+
+
+def test_cli_exit_codes_and_formats(tmp_path: Path) -> None:
+    example = str(ROOT / "examples" / "shaft_two_setups.stp")
+    failing = str(VFIX / "fail_shapes.stp")
+    assert _cli("validate", example).exit_code == 0
+    res = _cli("validate", "--format", "json", failing)
+    assert res.exit_code == 1
+    doc = json.loads(res.output)
+    assert doc["conforms"] is False and {"severity", "p21_id", "entity", "line", "path", "value", "message", "rule",
+                                          "clause", "focus"} <= set(doc["results"][0])
+    ttl = _cli("validate", "--format", "turtle", failing)
+    report = Graph().parse(data=ttl.output, format="turtle")
+    assert len(list(report.objects(None, SH.result))) == len(doc["results"])
+    assert _cli("validate").exit_code == 2  # neither files nor a store
+    bad = tmp_path / "bad.ttl"
+    bad.write_text("this is not turtle")
+    assert _cli("validate", "--shapes", str(bad), example).exit_code == 2
+    broken = tmp_path / "broken.stp"
+    broken.write_text("ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\n#1=PROJECT('x' ;\nENDSEC;\nEND-ISO-10303-21;\n")
+    assert _cli("validate", "--strict", str(broken)).exit_code == 2
+    assert _cli("validate", str(broken)).exit_code == 1  # lenient: the syntax error is a result
+
+
+def test_extra_shapes_and_store_mode(tmp_path: Path) -> None:
+    """An organisation's own rule (--shapes) runs beside the shipped ones; a store is validated in place."""
+    rule = tmp_path / "org.ttl"
+    rule.write_text("""@prefix sh: <http://www.w3.org/ns/shacl#> . @prefix stepnc: <https://w3id.org/stepnc-graph/iso14649#> .
+<urn:org:feed> a sh:NodeShape ; sh:targetClass stepnc:technology ;
+  sh:property [ sh:path stepnc:technology.feedrate ; sh:maxInclusive 0.2 ; sh:severity sh:Warning ] .""")
+    with api.open_store(tmp_path / "store") as store:
+        api.load(store, [ROOT / "examples" / "shaft_two_setups.stp"])
+        report = validate(store, extra_shapes=[rule])
+    assert report.conforms  # warnings do not fail a program
+    assert [(r.p21_id, r.severity, r.value) for r in report.results] == [(70, "Warning", "0.25")]
+    assert _cli("validate", "--store", str(tmp_path / "store"), "--shapes", str(rule),
+                "--severity", "violation").output.count("line") == 0
+
+
+def test_oneof_on_a_complex_instance(tmp_path: Path) -> None:
+    """ONEOF checks are skipped only while no instance has two types: a complex instance is checked."""
+    text = (ROOT / "examples" / "shaft_two_setups.stp").read_text()
+    end = text.rindex("ENDSEC;")
+    program = tmp_path / "complex.stp"
+    program.write_text(text[:end] + "#400=(CARTESIAN_POINT((0.,0.,0.))DIRECTION('D',(0.,0.,1.))"
+                       "GEOMETRIC_REPRESENTATION_ITEM()POINT('P')REPRESENTATION_ITEM());\n" + text[end:])
+    theirs, mine = reference(program)
+    assert mine == theirs
+    assert any(key[0].endswith("/i400") and "oneof" in (key[4] or "") for key in mine)
