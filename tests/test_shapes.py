@@ -60,10 +60,18 @@ def test_shipped_shapes_pass_shacl_shacl() -> None:
 
 @pytest.fixture(scope="module")
 def coverage():  # type: ignore[no-untyped-def]
+    from stepnc_graph.schema.catalog import load_catalog_model
+
+    catalog, model = load_catalog_model()  # with the rules' expressions (the compiled model has none)
+    return ShapesGenerator(model, catalog).coverage()
+
+
+def test_the_generator_refuses_a_model_without_rule_expressions() -> None:
     from stepnc_graph.schema.catalog import iso14649
 
     catalog, model = iso14649()
-    return ShapesGenerator(model, catalog).coverage()
+    with pytest.raises(ValueError, match="load_catalog_model"):
+        ShapesGenerator(model, catalog)
 
 
 @pytest.mark.parametrize("schema,target", [

@@ -103,6 +103,10 @@ class ShapesGenerator:
     def _translate_all(self) -> None:
         for name, decl in sorted(self.model.declarations.items()):
             for rule in decl.where_rules:
+                if rule.expr is None:
+                    raise ValueError(f"{name} {rule.label}: the shapes generator needs the rules' parsed expressions; "
+                                     "give it the model built from the EXPRESS (schema.catalog.load_catalog_model), "
+                                     "not the compiled model commands read")
                 text = express_text(rule.expr)
                 try:
                     if isinstance(decl, Entity):
