@@ -222,10 +222,21 @@ def test_a_later_definition_keeps_its_text(tmp_path: Path) -> None:
     store = sg.open_store(memory=True)
     [r] = sg.load(store, [program(tmp_path, data)], lenient=True)
     assert [(d.code, d.p21_id) for d in r.diagnostics] == [("P21-DUPLICATE-ID", 1)]
-    [(node, text)] = rows(store, r.graph, "?s ?t", "?s p21:duplicateText ?t")
-    assert node.endswith("/i1") and text == "#1=PROPERTY_PARAMETER('again');"
-    assert "later definition of #1, not loaded: #1=PROPERTY_PARAMETER('again');" in sg.export(
+    [(node, text, line)] = rows(store, r.graph, "?s ?t ?l", "?s p21:duplicateDefinition [ p21:rawText ?t ; "
+                                                             "p21:line ?l ]")
+    assert node.endswith("/i1") and text == "#1=PROPERTY_PARAMETER('again');" and line == "4"
+    assert "later definition of #1 (line 4), not loaded: #1=PROPERTY_PARAMETER('again');" in sg.export(
         store, "p21", r.graph).decode()
+
+
+def test_identical_later_definitions_are_all_kept(tmp_path: Path) -> None:
+    again = "#1=PROPERTY_PARAMETER('again');"
+    data = f"#1=PROPERTY_PARAMETER('a');\n{again}\n{again}\n{again}"
+    store = sg.open_store(memory=True)
+    path = program(tmp_path, data)
+    [r] = sg.load(store, [path], lenient=True)
+    assert_invariant(path, store, r)
+    assert sg.export(store, "p21", r.graph).decode().count("later definition of #1") == 3
 
 
 # -- every unresolved reference (P3.10) --------------------------------------------------------------
@@ -325,3 +336,12 @@ def test_damaged_programs_keep_every_promise(chunk: int, time_bound: None) -> No
         kind, data = mutate(rng, rng.choice(programs), programs)
         outcome = check(data)
         assert outcome.status in ("ok", "rejected"), (index, kind, outcome.detail)
+
+
+@pytest.mark.parametrize("number", ["1.E999", "-1.E999", "1" * 400])
+def test_a_real_no_double_can_hold_is_kept_raw(number: str, tmp_path: Path) -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [program(tmp_path, f"#1=CONST_SPINDLE_SPEED({number});")])
+    [d] = r.diagnostics
+    assert (d.code, d.p21_id) == ("P21-VALUE-TYPE", 1) and "out of the range of a double" in d.message
+    assert f"#1=CONST_SPINDLE_SPEED({number});" in sg.export(store, "p21", r.graph).decode()

@@ -86,10 +86,11 @@ def canonical(store: GraphStore, graph: str, exclude: frozenset[int] = frozenset
     rdflib's isomorphism test needs minutes for a 13k-triple toolpath file; this takes milliseconds.
     """
     prefix = graph + "/"
-    skip = {P21_NS + "line", P21_NS + "duplicateText", P21_NS + "repairedText"}
+    skip = {P21_NS + "line", P21_NS + "duplicateDefinition", P21_NS + "repairedText"}
     quads = list(store.quads(graph))
     repaired = {q.subject: q.object for q in quads if q.predicate.value == P21_NS + "repairedText"}
     dropped: set[object] = {ox.NamedNode(f"{prefix}i{i}") for i in exclude}
+    dropped |= {q.object for q in quads if q.predicate.value == P21_NS + "duplicateDefinition"}
     frontier = list(dropped)
     while frontier:  # blank nodes hanging off excluded instances
         node = frontier.pop()
@@ -148,7 +149,8 @@ def _definitions(path: Path) -> int:
 def assert_invariant(path: Path, store: GraphStore, r: sg.LoadResult) -> None:
     """Instances in the file = instances in the graph + later definitions of an #id (reported,
     their text kept on the first); unreadable instances are in the graph as their text."""
-    kept = list(store.query(f"SELECT ?t WHERE {{ GRAPH <{r.graph}> {{ ?s <{P21_NS}duplicateText> ?t }} }}"))
+    kept = list(store.query(f"SELECT ?t WHERE {{ GRAPH <{r.graph}> {{ ?s <{P21_NS}duplicateDefinition> ?d . "
+                            f"?d <{P21_NS}rawText> ?t }} }}"))
     assert _definitions(path) == len(instance_ids_in_graph(store, r.graph)) + len(kept)
     repeated = {d.p21_id for d in r.diagnostics if d.code in ("P21-DUPLICATE-ID", "P21-SYNTAX", "P21-TRUNCATED")}
     assert all(int(str(row[0].value).split("=")[0].strip().lstrip("#")) in repeated for row in kept)

@@ -83,7 +83,7 @@ def check(data: bytes, name: str = "fuzz.stp") -> Outcome:
             return Outcome("rejected")
     ids = {int(row[0].value) for row in store.query(
         f"SELECT ?id WHERE {{ GRAPH <{r.graph}> {{ ?s <{P21_NS}id> ?id }} }}")}
-    kept = len(list(store.query(f"SELECT ?t WHERE {{ GRAPH <{r.graph}> {{ ?s <{P21_NS}duplicateText> ?t }} }}")))
+    kept = len(list(store.query(f"SELECT ?d WHERE {{ GRAPH <{r.graph}> {{ ?s <{P21_NS}duplicateDefinition> ?d }} }}")))
     if not (len(ids) == r.instances and r.defined == len(ids) + kept):
         return Outcome("failed", f"invariant: {r.defined} definitions read, {len(ids)} instances in the graph "
                                  f"({r.instances} counted), {kept} later definitions kept as text")

@@ -21,7 +21,7 @@ import pyoxigraph as ox
 from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
-from stepnc_graph.mapping.plan import P21_DUPLICATE_TEXT, iso14649_plans
+from stepnc_graph.mapping.plan import P21_DUPLICATE, P21_LINE, P21_RAW_TEXT, iso14649_plans
 from stepnc_graph.naming import (
     P21_NS,
     TOOL_IRI,
@@ -183,10 +183,15 @@ class _Load:
                 for (scope, label), target in sorted(self.mapper.labels.items()) if target is not None]
 
     def duplicates(self) -> list[str]:
-        """The text of each later definition of an #id, on the instance it repeats."""
+        """Each later definition of an #id (its text and line), on the instance it repeats."""
         subject, text = self.mapper.subject, self.text
-        return [f"<{subject(i)}> {P21_DUPLICATE_TEXT} {T.string(text[start:end])} .\n"
-                for i, start, end in self.reader.duplicate_texts]
+        out: list[str] = []
+        for k, (i, start, end, line) in enumerate(self.reader.duplicate_texts, start=1):
+            node = f"_:dup{k}"  # a node each: two identical later definitions are two triples' worth
+            out += [f"<{subject(i)}> {P21_DUPLICATE} {node} .\n",
+                    f"{node} {P21_RAW_TEXT} {T.string(text[start:end])} .\n",
+                    f"{node} {P21_LINE} {T.integer(line)} .\n"]
+        return out
 
     def metadata(self) -> list[str]:
         g = self.graph

@@ -55,8 +55,9 @@ TERMS: tuple[Term, ...] = (
     Term("syntaxError", "data", "Why an unreadable instance could not be read, as the reader reported it."),
     Term("repairedText", "data", "The Part 21 text of a raw instance as the lenient reader repaired it (a missing "
                                  "';', a typographic quote); the export writes it, p21:rawText keeps the original."),
-    Term("duplicateText", "data", "The text of a later definition of the instance's #id, which was not loaded; "
-                                  "the Part 21 export writes it as a comment."),
+    Term("duplicateDefinition", "object", "A later definition of the instance's #id, which was not loaded: a node "
+                                          "with its p21:rawText and p21:line; the Part 21 export writes it as a "
+                                          "comment."),
     # loaded files (subject: the named graph of one file)
     Term("ExchangeStructure", "class", "A Part 21 file loaded as one named graph; the graph IRI is the subject."),
     Term("headerText", "data", "The HEADER section of the file, verbatim, so the writer can restore it."),

@@ -1336,7 +1336,7 @@ class P21(DefinedNamespace):
     derivation: URIRef
     derivedValue: URIRef
     diagnosticCount: URIRef
-    duplicateText: URIRef
+    duplicateDefinition: URIRef
     elementType: URIRef
     emptyAggregate: URIRef
     entityName: URIRef

@@ -14,6 +14,7 @@ a ``p21:UnreadableInstance`` holding its text and the syntax error.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -69,6 +70,17 @@ def describe(value: Any) -> str:
     if isinstance(value, str):
         return repr(value)
     return str(value)
+
+
+def _finite(value: float | int) -> float:
+    """A REAL as a double; one no double can hold (``1E999``) does not fit the attribute."""
+    try:
+        number = float(value)
+    except OverflowError:
+        number = float("inf")
+    if not math.isfinite(number):
+        raise Mismatch("P21-VALUE-TYPE", f"the REAL {describe(value)} is out of the range of a double")
+    return number
 
 
 def _refs(inst: Instance) -> list[int]:
@@ -133,7 +145,7 @@ class InstanceMapper:
         vt = type(value)
         if kind == "real":
             if vt is float or vt is int:
-                return T.double(float(value))
+                return T.double(_finite(value))
         elif kind == "entity":
             if vt is Ref:
                 return self._ref(value)

@@ -26,7 +26,7 @@ from stepnc_graph.mapping.plan import (
     P21_DERIVED,
     P21_EMPTY,
     P21_ID,
-    P21_DUPLICATE_TEXT,
+    P21_DUPLICATE,
     P21_RAW,
     P21_RAW_TEXT,
     P21_REPAIRED_TEXT,
@@ -152,11 +152,10 @@ class Part21Writer:
 
     def _instance(self, p21_id: int, key: str) -> str:
         text = self._instance_text(p21_id, key)
-        repeated = self.props[key].get(P21_DUPLICATE_TEXT, [])
-        if repeated:
-            text += "".join("\n" + comment(f"stepnc-graph: a later definition of #{p21_id}, not loaded: {t.value}")
-                            for t in sorted(repeated, key=lambda t: t.value))
-        return text
+        later = [(int(self._first(_key(n), "line") or 0), self._first(_key(n), "rawText") or "")
+                 for n in self.props[key].get(P21_DUPLICATE, [])]
+        return text + "".join("\n" + comment(f"stepnc-graph: a later definition of #{p21_id} (line {line}), not "
+                                             f"loaded: {raw}") for line, raw in sorted(later))
 
     def _instance_text(self, p21_id: int, key: str) -> str:
         p = self.props[key]

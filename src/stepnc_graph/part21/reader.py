@@ -153,8 +153,8 @@ class Part21Reader:
         last_close = text.rfind("*/")
         self._unclosed_from = last_close + 2 if last_close >= 0 else 0
         self._truncated = False  # lenient: the file ended inside a DATA section (reported once)
-        #: lenient: later definitions of an #id, not loaded: (#id, start, end) of their text
-        self.duplicate_texts: list[tuple[int, int, int]] = []
+        #: lenient: later definitions of an #id, not loaded: (#id, start, end, line) of their text
+        self.duplicate_texts: list[tuple[int, int, int, int]] = []
         self._line = 1
         self._line_start = 0
         self._cursor = 0  # offset up to which _line/_line_start are exact
@@ -537,7 +537,7 @@ class Part21Reader:
                 if not self.lenient:
                     raise self._syntax_error(_Failure(message, start, ()), instance.id, recoverable=True)
                 self._diagnose("P21-DUPLICATE-ID", start, instance.id, message)
-                self.duplicate_texts.append((instance.id, start, instance.end))
+                self.duplicate_texts.append((instance.id, start, instance.end, instance.line))
                 continue
             self._ids.add(instance.id)
             instance.section = index
@@ -617,7 +617,7 @@ class Part21Reader:
             return None, resume
         end = start + len(self.text[start:resume].rstrip())
         if p21_id in self._ids:
-            self.duplicate_texts.append((p21_id, start, end))
+            self.duplicate_texts.append((p21_id, start, end, self.position(start)[0]))
             return None, resume
         self._ids.add(p21_id)
         named = _ENTITY_NAME.match(self.text, start)
