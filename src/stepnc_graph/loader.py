@@ -295,7 +295,12 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
 
 def load_source(store: GraphStore, source: Source, *, lenient: bool = False,
                 progress: Progress | None = None) -> LoadResult:
-    """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input."""
+    """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input;
+    a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.jsonld_load`)."""
+    if source.path is not None and source.path.suffix.lower() == ".jsonld":
+        from stepnc_graph.jsonld_load import load_jsonld
+
+        return load_jsonld(store, source, progress)
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
     return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress))
 

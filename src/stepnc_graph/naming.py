@@ -44,6 +44,9 @@ DATA_BASE = "https://w3id.org/stepnc-graph/data/"
 #: The named graph holding the vocabulary (ontology/*.ttl) in a store.
 VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
 TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
+#: The IRI documents use to name the shipped JSON-LD context (``ontology/context.jsonld``).
+#: stepnc-graph never fetches it: its reader serves it from the installed file.
+CONTEXT_IRI = "https://w3id.org/stepnc-graph/context.jsonld"
 
 #: ``STEPNC`` and ``P21`` are rdflib Namespaces over the two namespaces above,
 #: made on first use (module ``__getattr__``): rdflib costs about 0.1 s to
