@@ -391,6 +391,7 @@ def test_the_reader_never_opens_a_connection_for_a_context_given_inline(
     ('{"@graph": [{"@id": "http://x/g1", "@graph": [{"@id": "http://x/a", "http://x/p": 1}]},'
      ' {"@id": "http://x/g2", "@graph": [{"@id": "http://x/b", "http://x/p": 1}]}]}', "holds 2 graphs"),
     ('{"@context": 5, "@id": "http://x/a", "http://x/p": 1}', "not JSON-LD that can be read"),
+    ('{"@id": "http://x/a", "http://x/p": ' + "[" * 100000 + "]" * 100000 + "}", "nested too deeply"),
     ('{"@context": {"a": "b:x", "b": "a:y"}, "@id": "http://x/a", "a": 1}', "not JSON-LD that can be read"),
 ])
 def test_bad_documents_are_refused_with_where_and_why(text: str | bytes, message: str, tmp_path: Path) -> None:

@@ -21,9 +21,10 @@ from typing import TYPE_CHECKING, Any
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:
-    from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload
+    from stepnc_graph.api import GraphInfo, LinkResult, LoadResult, export, info, link, load, open_store, unload
 
-__all__ = ["GraphInfo", "LoadResult", "__version__", "export", "info", "load", "open_store", "unload"]
+__all__ = ["GraphInfo", "LinkResult", "LoadResult", "__version__", "export", "info", "link", "load", "open_store",
+           "unload"]
 
 
 class _Package(types.ModuleType):

@@ -368,7 +368,8 @@ def document(quads: Iterable[ox.Quad], graph: str | None, tree: bool = False) ->
     if graph is not None:
         body = named(graph, graphs.get(graph, _Graph()), False)
         base = instance_prefix(graph) if _hierarchical(graph) else None
-        local = {**ctx.subset(used), **({"@base": base} if base else {})}
+        subset = ctx.subset(used)
+        local = {"@version": subset.pop("@version"), **({"@base": base} if base else {}), **subset}
         return {"@context": local, **body}
     top: list[dict[str, Any]] = []
     if None in graphs:
@@ -387,8 +388,13 @@ def _hierarchical(iri: str) -> bool:
 
 
 def dumps(doc: dict[str, Any]) -> bytes:
-    """The document as UTF-8 JSON, two-space indented, keys in the order written."""
-    return (json.dumps(doc, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+    """The document as UTF-8 JSON, keys in the order written: the context laid out as the shipped
+    file is (a line per term), the data two-space indented."""
+    from stepnc_graph.generators.jsonld import dumps as context_text
+
+    body = json.dumps({k: v for k, v in doc.items() if k != "@context"}, indent=2, ensure_ascii=False)
+    head = context_text({"@context": doc["@context"]})
+    return (head[:-len("\n}\n")] + ",\n" + body[len("{\n"):] + "\n").encode("utf-8")
 
 
 def export_jsonld(quads: Iterable[ox.Quad], graph: str | None, tree: bool = False) -> bytes:

@@ -162,7 +162,8 @@ def dumps(document: dict[str, Any]) -> str:
         if isinstance(value, dict) and "@context" in value:
             inner = ",\n".join(f"      {json.dumps(k)}: {json.dumps(v, ensure_ascii=False)}"
                                for k, v in value["@context"].items())
-            lines.append(f'    {json.dumps(key)}: {{"@id": {json.dumps(value["@id"])}, "@context": {{\n{inner}\n    }}}}')
+            head = f'    {json.dumps(key)}: {{"@id": {json.dumps(value["@id"])}, "@context": {{'
+            lines.append(f"{head}\n{inner}\n    }}}}")
         else:
             lines.append(f"    {json.dumps(key)}: {json.dumps(value, ensure_ascii=False)}")
     return '{\n  "@context": {\n' + ",\n".join(lines) + "\n  }\n}\n"
