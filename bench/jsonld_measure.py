@@ -1,6 +1,6 @@
 """What a PLM integrator gets from the JSON-LD export, before and after the generated context.
 
-    python bench/jsonld_measure.py [PROGRAM.stp]
+    python bench/jsonld_measure.py [PROGRAM.stp] [--size 20000]
 
 Loads the program (default: the shipped example) and exports it as JSON-LD two
 ways: "before", rdflib's serializer with the prefixes-only context (what the
@@ -11,12 +11,20 @@ arrays, and what a JavaScript program that reads and writes the document back
 (``JSON.stringify(JSON.parse(text))``, which writes the number 2.0 as ``2``)
 does to the REAL values: how many ``xsd:double`` literals the document gives
 after that round trip, and how many became ``xsd:integer``.
+
+``--size N`` then times, on a generated N-instance program (``bench/generate.py``),
+the exports (N-Triples and Part 21 as references, JSON-LD, JSON-LD tree; median
+of 3, CPU and wall seconds) and loading the JSON-LD export back next to loading
+the Part 21 file (one run each).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
+import statistics
 import sys
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -93,8 +101,44 @@ def chained_lists(data: bytes, heads: set[str]) -> int:
     return len(chained)
 
 
+def timed(run: Any, repeat: int) -> tuple[float, float, Any]:
+    """Median CPU and wall seconds of ``repeat`` runs, and the last result."""
+    cpu, wall, out = [], [], None
+    for _ in range(repeat):
+        c, w = time.process_time(), time.perf_counter()
+        out = run()
+        cpu.append(time.process_time() - c)
+        wall.append(time.perf_counter() - w)
+    return statistics.median(cpu), statistics.median(wall), out
+
+
+def scale(size: int) -> None:
+    """Export and load times of JSON-LD next to N-Triples and Part 21 on a generated program."""
+    sys.path.insert(0, str(HERE))
+    from generate import write  # bench/generate.py
+
+    work = Path(tempfile.mkdtemp(prefix="stepnc-jsonld-"))
+    program = work / f"turning_{size}.stp"
+    write(size, program)
+    with sg.open_store(memory=True) as store:
+        [r] = sg.load(store, [program])
+        print(f"\n{program.name}: {r.instances} instances, {r.triples} triples")
+        for fmt in ("nt", "p21", "jsonld", "jsonld-tree"):
+            cpu, wall, data = timed(lambda fmt=fmt: sg.export(store, fmt, r.graph), 3)
+            print(f"export {fmt:<12} {len(data):>10} bytes  cpu {cpu:6.2f} s  wall {wall:6.2f} s")
+            if fmt == "jsonld":
+                (work / "program.jsonld").write_bytes(data)
+        for name, path in (("Part 21", program), ("JSON-LD", work / "program.jsonld")):
+            cpu, wall, _ = timed(lambda path=path: sg.load(store, [path], base_iri=f"{r.graph}-{path.suffix[1:]}"), 1)
+            print(f"load {name:<14} {path.stat().st_size:>10} bytes  cpu {cpu:6.2f} s  wall {wall:6.2f} s")
+
+
 def main() -> None:
-    program = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE.parent / "examples" / "shaft_two_setups.stp"
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("program", nargs="?", type=Path, default=HERE.parent / "examples" / "shaft_two_setups.stp")
+    ap.add_argument("--size", type=int, default=None, help="also time a generated program of this many instances")
+    args = ap.parse_args()
+    program = args.program
     with sg.open_store(memory=True) as store:
         [r] = sg.load(store, [program], lenient=True)
         reals = sum(1 for q in store.quads(r.graph) if isinstance(q.object, ox.Literal)
@@ -115,6 +159,8 @@ def main() -> None:
             after = datatypes(javascript_round_trip(data))
             print(f"{name:<22}{len(data):>9}{chained_lists(data, heads):>16}{after['double']:>18}"
                   f"{reals - after['double']:>16}{cpu:>8.3f}")
+    if args.size:
+        scale(args.size)
 
 
 if __name__ == "__main__":

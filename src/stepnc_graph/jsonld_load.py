@@ -45,7 +45,8 @@ import pyoxigraph as ox
 from stepnc_graph import __version__
 from stepnc_graph.loader import DCT, PROV, RDFS, LoadResult, Progress, load_time
 from stepnc_graph.mapping.plan import Plans, iso14649_plans
-from stepnc_graph.naming import CONTEXT_IRI, P21_NS, TOOL_IRI, alias_iri, derived_graph_iri, instance_prefix
+from stepnc_graph.naming import CONTEXT_IRI, P21_NS, TOOL_IRI, alias_iri, instance_prefix
+from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.sources import Source, SourceError
 from stepnc_graph.store import GraphStore
 
@@ -247,18 +248,45 @@ def _mover(old: str | None, new: str) -> Any:
 
 
 class JsonLdLoad:
-    """One JSON-LD file's load into the named graph ``source.graph``."""
+    """One JSON-LD file's load into the named graph ``source.graph``.
 
-    def __init__(self, source: Source, raw: bytes, plans: Plans) -> None:
+    Everything is read and checked when it is made (so bad input never opens a
+    store transaction); the loader's run then writes :meth:`chunks` atomically,
+    as for a Part 21 file (:func:`stepnc_graph.loader.load_source`).
+    """
+
+    def __init__(self, source: Source, raw: bytes, plans: Plans, progress: Progress | None = None) -> None:
+        self.started = time.perf_counter()
         self.source = source
         self.raw = raw
         self.plans = plans
+        self.progress = progress
         self.graph = source.graph
         self.result = LoadResult(source.name, source.graph)
         doc = local_contexts(parse_json(raw, source.name), source.name)
         old, triples = program_graph(parse_quads(doc, instance_prefix(source.graph), source.name), source.name)
         move = _mover(old, self.graph)
         self.triples = [ox.Triple(move(t.subject), t.predicate, move(t.object)) for t in triples]
+        self.lines = self._lines()
+        self.result.triples = len(self.lines)
+
+    @classmethod
+    def of_source(cls, source: Source, progress: Progress | None = None) -> "JsonLdLoad":
+        """The load of the ``.jsonld`` file ``source``, read and checked: :class:`JsonLdError` (bad
+        input: exit 2) when it is not JSON, names a context that would have to be fetched, holds
+        several graphs or no instance, or cannot be written back as Part 21."""
+        if source.path is None:
+            raise JsonLdError("JSON-LD is read from a .jsonld file, not standard input", source.name)
+        return cls(source, read_bytes(source.path), iso14649_plans(), progress)
+
+    # what the loader's run asks of a load (stepnc_graph.loader._run)
+
+    def dangling(self, store: GraphStore, where: str) -> list[Diagnostic]:
+        """References to unreadable instances: a JSON-LD document has none."""
+        return []
+
+    def diagnostics(self) -> list[Diagnostic]:
+        return []
 
     def instances(self) -> dict[Any, list[str]]:
         """Instance nodes (a class of the schema, or kept raw) and their types."""
@@ -313,7 +341,6 @@ class JsonLdLoad:
                f"{s} <{P21_NS}sha256> {ox.Literal(hashlib.sha256(self.raw).hexdigest())} .\n",
                f"{s} <{P21_NS}instanceCount> {_integer(len(types))} .\n",
                f"{s} <{P21_NS}rawInstanceCount> {_integer(raw_count)} .\n",
-               f"{s} <{P21_NS}diagnosticCount> {_integer(0)} .\n",
                f"{s} <{PROV}generatedAtTime> {now} .\n", f"{s} <{PROV}wasGeneratedBy> {activity} .\n",
                f"{activity} <{RDF_TYPE}> <{PROV}Activity> .\n", f"{activity} <{PROV}wasAssociatedWith> {tool} .\n",
                f"{activity} <{PROV}endedAtTime> {now} .\n", f"{tool} <{RDF_TYPE}> <{PROV}SoftwareAgent> .\n",
@@ -324,8 +351,9 @@ class JsonLdLoad:
         out += [f"{s} <{PROV}wasDerivedFrom> {source} .\n" for source in derived_from]
         return out
 
-    def lines(self) -> list[str]:
-        """Every triple of the graph to write, as N-Triples lines (duplicates removed)."""
+    def _lines(self) -> list[str]:
+        """Every triple of the graph to write, as N-Triples lines (duplicates removed); the loader
+        adds ``p21:diagnosticCount`` when it commits."""
         types = self.instances()
         if not types:
             raise JsonLdError("holds no STEP-NC instance (no node of a class of the ISO 14649 vocabulary); "
@@ -350,7 +378,7 @@ class JsonLdLoad:
         except (WriteError, ValueError, KeyError, IndexError) as e:
             raise JsonLdError(f"cannot be written back as Part 21: {e}", self.source.name) from None
 
-    def chunks(self, lines: list[str]) -> Iterator[str]:
+    def chunks(self) -> Iterator[str]:
         """N-Triples chunks of about CHUNK_TRIPLES lines; the triples of connected blank nodes stay in
         one chunk (a bulk load names blank nodes per call)."""
         parent: dict[str, str] = {}
@@ -362,6 +390,7 @@ class JsonLdLoad:
             return x
 
         keys = []
+        lines = self.lines
         for line in lines:  # a blank node is the subject or the last term: blanks hold no spaces
             terms = [t for t in (line[:line.index(" ")], line[line.rindex(" ", 0, len(line) - 3) + 1:-3])
                      if t.startswith("_:")]
@@ -379,28 +408,9 @@ class JsonLdLoad:
                 out.clear()
         if out:
             yield "".join(out)
+        if self.progress is not None:
+            self.progress(len(self.raw), len(self.raw))
 
 
 def _integer(value: int) -> str:
     return f'"{value}"^^<{XSD}integer>'
-
-
-def load_jsonld(store: GraphStore, source: Source, progress: Progress | None = None) -> LoadResult:
-    """Load the JSON-LD file ``source`` as the named graph ``source.graph``, atomically.
-
-    Raises :class:`JsonLdError` (bad input: exit 2) when the document is not
-    JSON, names a context that would have to be fetched, holds several graphs or
-    no instance, or cannot be written back as Part 21; the store is then unchanged.
-    """
-    started = time.perf_counter()
-    if source.path is None:
-        raise JsonLdError("JSON-LD is read from a .jsonld file, not standard input", source.name)
-    raw = read_bytes(source.path)
-    job = JsonLdLoad(source, raw, iso14649_plans())
-    lines = job.lines()
-    job.result.triples = len(lines)
-    store.replace_graph(job.graph, job.chunks(lines), companions=(derived_graph_iri(job.graph),))
-    if progress is not None:
-        progress(len(raw), len(raw))
-    job.result.seconds = time.perf_counter() - started
-    return job.result
