@@ -277,6 +277,21 @@ def test_base_iri_moves_the_document_to_another_graph(tmp_path: Path) -> None:
     assert not any(i.startswith(r.graph) for i in iris)
 
 
+@pytest.mark.parametrize("graph", ["urn:example:programs:42", "https://plm.example.com/programs#42"])
+def test_graphs_without_a_hierarchical_base_are_written_with_absolute_iris(graph: str, tmp_path: Path) -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [EXAMPLE], base_iri=graph)
+    data = sg.export(store, "jsonld", r.graph)
+    doc = json.loads(data)
+    assert "@base" not in doc["@context"] and doc["@id"] == graph
+    assert value_normalised(parsed_by_rdflib(data)) == value_normalised(list(store.quads(r.graph)))
+    path = tmp_path / "abs.jsonld"
+    path.write_bytes(data)
+    fresh = sg.open_store(memory=True)
+    [back] = sg.load(fresh, [path])
+    assert back.graph == graph and canonical(fresh, graph) == canonical(store, graph)
+
+
 def test_aliases_follow_an_edited_its_id(tmp_path: Path) -> None:
     store, r = loaded()
     doc = json.loads(sg.export(store, "jsonld", r.graph))

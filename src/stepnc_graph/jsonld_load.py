@@ -119,6 +119,8 @@ def local_contexts(doc: Any, name: str) -> Any:
     stack = [doc]
     while stack:
         value = stack.pop()
+        if value is shipped:  # the shipped context, put in place: nothing to resolve in it
+            continue
         if isinstance(value, list):
             stack.extend(value)
             continue
