@@ -73,12 +73,13 @@ def test_schema_entity_reads_the_compiled_model() -> None:
     assert "express_schema" not in modules and "stepnc_graph.schema.builder" not in modules
 
 
-def test_jsonld_export_still_uses_rdflib(tmp_path: Path) -> None:
-    # the one export that needs rdflib gets it: lazy, not missing
+def test_jsonld_export_imports_no_rdf_library(tmp_path: Path) -> None:
+    # the JSON-LD export is written from the store's quads with the shipped context (stepnc_graph.jsonld)
     store = str(tmp_path / "store")
     assert imported_by(["load", "--store", store, str(EXAMPLE)])[0] == 0
     code, modules = imported_by(["export", "--format", "jsonld", "--store", store])
-    assert code == 0 and "rdflib" in modules
+    assert code == 0 and "stepnc_graph.jsonld" in modules
+    assert heavy(modules) == []
 
 
 def test_stale_compiled_model_is_reported_by_the_cli(tmp_path: Path) -> None:

@@ -21,9 +21,21 @@ from typing import TYPE_CHECKING, Any
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:
-    from stepnc_graph.api import GraphInfo, LoadResult, export, info, load, open_store, unload, validate
+    from stepnc_graph.api import (
+        GraphInfo,
+        LinkResult,
+        LoadResult,
+        export,
+        info,
+        link,
+        load,
+        open_store,
+        unload,
+        validate,
+    )
 
-__all__ = ["GraphInfo", "LoadResult", "__version__", "export", "info", "load", "open_store", "unload", "validate"]
+__all__ = ["GraphInfo", "LinkResult", "LoadResult", "__version__", "export", "info", "link", "load", "open_store",
+           "unload", "validate"]
 
 
 class _Package(types.ModuleType):

@@ -15,14 +15,15 @@ from pathlib import Path
 from typing import Any
 
 from stepnc_graph.export import export
+from stepnc_graph.link import LinkResult, link
 from stepnc_graph.loader import LoadResult, Progress, load_source
 from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
 from stepnc_graph.naming import P21_NS, derived_graph_iri
 from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path
 from stepnc_graph.validate import validate
 
-__all__ = ["GraphInfo", "LoadResult", "SourceError", "StoreBusy", "StoreError", "export", "info",
-           "load", "open_store", "unload", "validate"]
+__all__ = ["GraphInfo", "LinkResult", "LoadResult", "SourceError", "StoreBusy", "StoreError", "export", "info",
+           "link", "load", "open_store", "unload", "validate"]
 
 
 def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,
@@ -59,8 +60,11 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
 
 
 def unload(store: Store, graph: str) -> bool:
-    """Remove a file's graph (with its derived layer); False if there was none."""
-    return store.remove_graph(graph, companions=(derived_graph_iri(graph),))
+    """Remove a file's graph with its derived layer and its link graphs (:mod:`stepnc_graph.link`),
+    atomically; False if there was none."""
+    from stepnc_graph.link import program_link_graphs
+
+    return store.remove_graph(graph, companions=(derived_graph_iri(graph), *program_link_graphs(store, graph)))
 
 
 @dataclass(frozen=True)

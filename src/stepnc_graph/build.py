@@ -38,10 +38,11 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"ontology/{rel}"] = text
     for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
         out[f"ontology/{rel}"] = text
-    for rel, text in JsonLdContextGenerator(naming).outputs().items():
+    plans = Plans(model, naming)
+    for rel, text in JsonLdContextGenerator(plans, naming).outputs().items():
         out[f"ontology/{rel}"] = text
     digest = cache.express_digest(catalog.directory)
-    out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, Plans(model, naming).dump(), digest)
+    out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
     for rel, text in ShapesGenerator(model, catalog, naming).outputs().items():
         out[f"shapes/{rel}"] = text
     for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():

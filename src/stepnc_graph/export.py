@@ -12,7 +12,6 @@ their place (``_:i12b3``), then the other named subjects sorted.
 from __future__ import annotations
 
 import io
-import json
 from collections.abc import Iterator
 from typing import Any
 
@@ -22,11 +21,10 @@ from stepnc_graph.generators.jsonld import context
 from stepnc_graph.mapping.plan import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
 from stepnc_graph.naming import P21_NS
-from stepnc_graph.resources import ontology_dir
 from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.store import GraphStore, Store
 
-FORMATS = ("ttl", "nt", "nq", "trig", "jsonld", "p21")
+FORMATS = ("ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21")
 _OX = {"ttl": ox.RdfFormat.TURTLE, "nt": ox.RdfFormat.N_TRIPLES, "nq": ox.RdfFormat.N_QUADS,
        "trig": ox.RdfFormat.TRIG}
 QUAD_FORMATS = ("nq", "trig")
@@ -57,8 +55,8 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
     # the canonical order walks the graph node by node: a remote graph is copied here first
     local = store if isinstance(store, GraphStore) else store.local_copy(graph)  # type: ignore[attr-defined]
-    if fmt == "jsonld":
-        return _jsonld(local, graph)
+    if fmt in ("jsonld", "jsonld-tree"):
+        return _jsonld(local, graph, fmt == "jsonld-tree")
     prefixes = context(iso14649()[0].naming)
     return _serialize(_OX[fmt], canonical_quads(local, graph), fmt not in QUAD_FORMATS, prefixes)
 
@@ -150,36 +148,9 @@ def _shallow(db: ox.Store, g: ox.NamedNode, term: object) -> str:
                             for q in db.quads_for_pattern(term, None, None, g)))
 
 
-def _jsonld(store: GraphStore, graph: str | None) -> bytes:
-    """Compact JSON-LD with the shipped context (``ontology/context.jsonld``)."""
-    import rdflib
+def _jsonld(store: GraphStore, graph: str | None, tree: bool = False) -> bytes:
+    """JSON-LD compacted with the generated context (``tree``: a readable, framed tree); see
+    :mod:`stepnc_graph.jsonld`."""
+    from stepnc_graph.jsonld import export_jsonld
 
-    def term(t: Any) -> Any:  # our canonical labels kept (rdflib's parsers would rename blank nodes)
-        if isinstance(t, ox.BlankNode):
-            return rdflib.BNode(t.value)
-        if isinstance(t, ox.Literal):
-            return rdflib.Literal(t.value, lang=t.language, datatype=None if t.language else
-                                  rdflib.URIRef(t.datatype.value))
-        return rdflib.URIRef(t.value)
-
-    target: rdflib.Graph = rdflib.Dataset() if graph is None else rdflib.Graph(identifier=rdflib.URIRef(graph))
-    for q in canonical_quads(store, graph):
-        if isinstance(target, rdflib.Dataset):
-            name = q.graph_name
-            context = target.graph(term(name)) if isinstance(name, ox.NamedNode) else target.default_graph
-            context.add((term(q.subject), term(q.predicate), term(q.object)))
-        else:
-            target.add((term(q.subject), term(q.predicate), term(q.object)))
-    ctx = json.loads((ontology_dir() / "context.jsonld").read_text())["@context"]
-    doc = json.loads(target.serialize(format="json-ld", context=ctx, auto_compact=True))
-    # rdflib writes nodes and multiple values in set order: sort them (never an @list)
-    return (json.dumps(_sorted_json(doc), indent=2, sort_keys=True, ensure_ascii=False) + "\n").encode("utf-8")
-
-
-def _sorted_json(value: Any, ordered: bool = False) -> Any:
-    if isinstance(value, dict):
-        return {k: _sorted_json(v, k == "@list") for k, v in value.items()}
-    if isinstance(value, list):
-        items = [_sorted_json(v) for v in value]
-        return items if ordered else sorted(items, key=lambda v: json.dumps(v, sort_keys=True))
-    return value
+    return export_jsonld(canonical_quads(store, graph), graph, tree)

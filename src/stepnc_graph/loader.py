@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
@@ -37,6 +37,9 @@ from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.sources import Source
 from stepnc_graph.store import Store
+
+if TYPE_CHECKING:
+    from stepnc_graph.jsonld_load import JsonLdLoad
 
 DCT = "http://purl.org/dc/terms/"
 OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
@@ -298,12 +301,17 @@ def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri
 
 def load_source(store: Store, source: Source, *, lenient: bool = False,
                 progress: Progress | None = None) -> LoadResult:
-    """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input."""
+    """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input;
+    a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.jsonld_load`)."""
+    if source.path is not None and source.path.suffix.lower() == ".jsonld":
+        from stepnc_graph.jsonld_load import JsonLdLoad
+
+        return _run(store, JsonLdLoad.of_source(source, progress))
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
     return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress))
 
 
-def _run(store: Store, job: _Load) -> LoadResult:
+def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
     extra: list[Diagnostic] = []
 
     def before_commit(target: Callable[[str], str]) -> None:

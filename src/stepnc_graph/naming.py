@@ -22,7 +22,9 @@ Scheme (documented in ``ontology/README.md``, stable for good):
   scope shares also gets an alias ``<base IRI>/id/<scope>/<its_id>``
   (percent-encoded; the scope is the entity declaring ``its_id``, such as
   ``executable`` or ``manufacturing_feature``), ``owl:sameAs`` the instance:
-  a link for PLM systems that survives renumbering of the instance ids.
+  a link for PLM systems that survives renumbering of the instance ids;
+* the links a mapping file attaches to a program's instances live in their own
+  named graph ``<base IRI>/links/<mapping file name>`` (percent-encoded).
 """
 
 from __future__ import annotations
@@ -44,6 +46,9 @@ DATA_BASE = "https://w3id.org/stepnc-graph/data/"
 #: The named graph holding the vocabulary (ontology/*.ttl) in a store.
 VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
 TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
+#: The IRI documents use to name the shipped JSON-LD context (``ontology/context.jsonld``).
+#: stepnc-graph never fetches it: its reader serves it from the installed file.
+CONTEXT_IRI = "https://w3id.org/stepnc-graph/context.jsonld"
 
 #: ``STEPNC`` and ``P21`` are rdflib Namespaces over the two namespaces above,
 #: made on first use (module ``__getattr__``): rdflib costs about 0.1 s to
@@ -126,6 +131,16 @@ def derived_graph_iri(graph_iri: str) -> str:
 def section_iri(graph_iri: str, index: int) -> str:
     """The ``index``-th (1-based) DATA section of a file that has several."""
     return f"{instance_prefix(graph_iri)}section{index}"
+
+
+def link_graph_iri(graph_iri: str, mapping: str) -> str:
+    """The named graph of the links one mapping file (``mapping``: its file name) attaches to a program."""
+    return f"{link_graphs_prefix(graph_iri)}{quote(mapping, safe='')}"
+
+
+def link_graphs_prefix(graph_iri: str) -> str:
+    """What every link graph of a program starts with (see :func:`link_graph_iri`)."""
+    return f"{instance_prefix(graph_iri)}links/"
 
 
 def alias_iri(graph_iri: str, scope: str, label: str) -> str:

@@ -83,6 +83,10 @@ TERMS: tuple[Term, ...] = (
     Term("dataSection", "object", "The DATA section that holds the instance (only in files with several)."),
     Term("sectionIndex", "data", "1-based place of a DATA section in its file."),
     Term("sectionText", "data", "The opening of a DATA section verbatim, e.g. DATA('a',('TURNING_SCHEMA'));."),
+    # links to PLM data (subject: a link graph written by `stepnc-graph link`)
+    Term("LinkGraph", "class", "A named graph of links from a program's instances to PLM identifiers (owl:sameAs, "
+                               "dcterms:identifier), written from one mapping file; the program graph is not changed."),
+    Term("linkedProgram", "object", "The program graph (p21:ExchangeStructure) whose instances a link graph links."),
     Term("unset", "individual", "An unset ($) member of an ARRAY with OPTIONAL elements."),
     Term("logicalUnknown", "datatype", "Datatype of the LOGICAL value UNKNOWN, the only member of its value space: \"UNKNOWN\"^^p21:logicalUnknown."),
 )

@@ -20,8 +20,8 @@ import pyoxigraph as ox
 from stepnc_graph.naming import DATA_BASE, instance_prefix
 from stepnc_graph.store import Store
 
-#: file name endings of Part 21 programs, compared case-insensitively
-SUFFIXES = (".stp", ".step", ".p21")
+#: file name endings of Part 21 programs, and of program graphs in JSON-LD, compared case-insensitively
+SUFFIXES = (".stp", ".step", ".p21", ".jsonld")
 STDIN = "-"
 
 
@@ -60,10 +60,12 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
     """The files to load and their graph IRIs, in order.
 
     A directory stands for every Part 21 file under it (``.stp``, ``.step``,
-    ``.p21``, any case), sorted. Graph IRIs: ``base_iri`` for a single file,
+    ``.p21``, any case) and every JSON-LD program graph (``.jsonld``), sorted.
+    Graph IRIs: ``base_iri`` for a single file,
     else ``base_iri`` (or ``https://w3id.org/stepnc-graph/data/``) as a prefix of
     the file name -- of the path relative to its directory, for a file found in
-    one. ``-`` is standard input and needs ``base_iri``.
+    one; a JSON-LD file names its own graph, used unless ``base_iri`` is given.
+    ``-`` is standard input and needs ``base_iri``.
     """
     if base_iri is not None:
         check_iri(base_iri, "--base-iri")
@@ -76,7 +78,7 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
         if p.is_dir():
             found = sorted(f for f in p.rglob("*") if f.suffix.lower() in SUFFIXES and f.is_file())
             if not found:
-                raise SourceError(f"{p}: no Part 21 files ({', '.join(SUFFIXES)}) in this directory")
+                raise SourceError(f"{p}: no Part 21 or JSON-LD files ({', '.join(SUFFIXES)}) in this directory")
             expanded.extend((str(f), f, _relative_name(f.relative_to(p))) for f in found)
         else:
             expanded.append((str(p), p, quote(p.name, safe="")))
@@ -89,6 +91,10 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
             graph = base_iri
         else:
             graph = (instance_prefix(base_iri) if base_iri is not None else DATA_BASE) + local
+        if path is not None and base_iri is None and path.suffix.lower() == ".jsonld":
+            from stepnc_graph.jsonld_load import named_graph_of  # a JSON-LD document names its graph
+
+            graph = named_graph_of(path) or graph
         sources.append(Source(name, path, graph))
     _refuse_repeats(sources)
     return sources

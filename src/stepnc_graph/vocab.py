@@ -1321,6 +1321,7 @@ class P21(DefinedNamespace):
 
     DataSection: URIRef
     ExchangeStructure: URIRef
+    LinkGraph: URIRef
     RawInstance: URIRef
     TypedValue: URIRef
     UnreadableInstance: URIRef
@@ -1352,6 +1353,7 @@ class P21(DefinedNamespace):
     isoClause: URIRef
     isoPart: URIRef
     line: URIRef
+    linkedProgram: URIRef
     logicalUnknown: URIRef
     optional: URIRef
     originatingSystem: URIRef

@@ -1,7 +1,8 @@
 """The ``stepnc-graph`` command line. The only package that prints.
 
 One module per command group, each a thin layer over the Python API:
-:mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info).
+:mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info),
+:mod:`.link` (PLM identifiers).
 Shared pieces (consoles, exit codes, store options) are in :mod:`.common`.
 
 Exit codes, for scripts: 0 ok; 1 the data does not conform (diagnostics, a
@@ -19,7 +20,7 @@ from __future__ import annotations
 import click
 
 from stepnc_graph import __version__
-from stepnc_graph.cli import ontology, schema, store, validate
+from stepnc_graph.cli import link, ontology, schema, store, validate
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -49,5 +50,5 @@ def main() -> None:
 main.add_command(ontology.ontology)
 main.add_command(schema.schema)
 main.add_command(validate.validate_cmd)
-for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd):
+for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd, link.link_cmd):
     main.add_command(command)

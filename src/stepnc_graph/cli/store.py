@@ -173,8 +173,9 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @with_endpoint
 @click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
                                             "or the only one.")
-@click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "p21"]), required=True,
-              help="p21 writes the graph back as a Part 21 file.")
+@click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21"]),
+              required=True, help="p21 writes the graph back as a Part 21 file; jsonld-tree frames a program as a "
+                                  "tree (project, workplans, workingsteps, operation, tool, feature).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write here instead of standard output.")
 @reports_errors
