@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -23,3 +25,29 @@ def iso_model():  # type: ignore[no-untyped-def]
     from stepnc_graph.schema.catalog import iso14649
 
     return iso14649()
+
+
+def bounded(seconds: int) -> Iterator[None]:
+    """Fail (instead of hanging CI) when the test runs longer than ``seconds``."""
+
+    def expired(*_: object) -> None:
+        raise TimeoutError(f"took longer than {seconds} s: a hang")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+@pytest.fixture
+def time_bound() -> Iterator[None]:
+    yield from bounded(20)
+
+
+@pytest.fixture
+def process_time_bound() -> Iterator[None]:
+    """For tests that drive other processes: a generous bound, still far below CI's."""
+    yield from bounded(240)

@@ -16,10 +16,11 @@ import time
 from pathlib import Path
 
 import pytest
-
 import stepnc_graph as sg
 
 from conftest import ROOT
+
+pytestmark = pytest.mark.usefixtures("process_time_bound")
 
 EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
 CLI = [sys.executable, "-m", "stepnc_graph.cli"]

@@ -8,8 +8,6 @@ loads did not parse, only the first unresolved reference was reported, ...).
 from __future__ import annotations
 
 import re
-import signal
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -22,22 +20,6 @@ from conftest import ROOT
 from test_load import HEADER, assert_invariant, assert_round_trip, program, unreadable_ids
 
 EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
-
-
-@pytest.fixture
-def time_bound() -> Iterator[None]:
-    """Fail (instead of hanging CI) when a test runs longer than 20 s."""
-
-    def expired(*_: object) -> None:
-        raise TimeoutError("took longer than 20 s: a hang")
-
-    previous = signal.signal(signal.SIGALRM, expired)
-    signal.alarm(20)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 def codes(r: sg.LoadResult) -> list[str]:

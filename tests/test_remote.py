@@ -20,13 +20,14 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-import requests
+import pytestimport requests
 
 import stepnc_graph as sg
 from stepnc_graph.remote import Endpoint, RemoteStore, StoreError, open_remote
 
 from conftest import FIXTURES, ROOT
+
+pytestmark = pytest.mark.usefixtures("process_time_bound")
 
 EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
 PROGRAMS = [EXAMPLE, *sorted((FIXTURES / "p21").glob("pass_*.stp"))]

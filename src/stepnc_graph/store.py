@@ -306,11 +306,19 @@ class GraphStore:
         os.pwrite(fd, json.dumps({"pid": os.getpid(), "command": _command_line(),
                                   "since": time.strftime("%Y-%m-%d %H:%M:%S")}).encode(), 0)
         self._migrate_format1()
+        serving = self._file("work.serving")
         if self._current() is None:  # a new store: publish its empty first generation
             shutil.rmtree(self._file("work"), ignore_errors=True)
             self._store = ox.Store(str(self._file("work")))
             self._publish()
+        elif serving.exists() and not self._file("work.dirty").exists() and self._file("work").is_dir():
+            # `serve --writable` stopped without publishing: Oxigraph ran every update in a
+            # transaction, so its database is consistent; publish it rather than lose the updates
+            self._store = ox.Store(str(self._file("work")))
+            self._publish()
+            serving.unlink()
         else:
+            serving.unlink(missing_ok=True)
             self._recover()
             self._store = ox.Store(str(self._file("work")))
         self._collect()
@@ -404,6 +412,23 @@ class GraphStore:
         self.generation = name
         self._file("work.generation").write_text(name)
         self._file("work.dirty").unlink(missing_ok=True)
+
+    def serving(self) -> Path:
+        """Hand the writer's database to another process (``serve --writable``): it is closed
+        here and marked as being served; :meth:`served` takes it back and publishes it."""
+        if self.path is None or self.readonly:
+            raise StoreError("only an on-disk store opened for writing can be served writable")
+        self._close_db()
+        self._file("work.serving").write_text(str(os.getpid()))
+        _fsync_dir(self.path)
+        return self._file("work")
+
+    def served(self) -> None:
+        """The serving process stopped: reopen the database and publish what it changed."""
+        self._store = ox.Store(str(self._file("work")))
+        self._publish()
+        self._collect()
+        self._file("work.serving").unlink(missing_ok=True)
 
     def _commit(self) -> None:
         if self.path is None:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import click
 
 from stepnc_graph import __version__
-from stepnc_graph.cli import link, ontology, schema, store, validate
+from stepnc_graph.cli import link, ontology, schema, serve, store, validate
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -50,5 +50,6 @@ def main() -> None:
 main.add_command(ontology.ontology)
 main.add_command(schema.schema)
 main.add_command(validate.validate_cmd)
+main.add_command(serve.serve_cmd)
 for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd, link.link_cmd):
     main.add_command(command)

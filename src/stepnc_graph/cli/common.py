@@ -134,6 +134,7 @@ def user_errors() -> tuple[type[BaseException], ...]:
     return (UsageProblem, StoreError, SourceError, ExportError, Part21SyntaxError, OSError, UnicodeError)
 
 
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 
