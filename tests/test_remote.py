@@ -20,7 +20,8 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytestimport requests
+import pytest
+import requests
 
 import stepnc_graph as sg
 from stepnc_graph.remote import Endpoint, RemoteStore, StoreError, open_remote
