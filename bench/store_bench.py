@@ -99,6 +99,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000])
     ap.add_argument("--repeat", type=int, default=3, help="runs per figure below 1M instances (1M: 1 run)")
+    ap.add_argument("--others", type=int, nargs="+", default=[0, 3],
+                    help="other copies of the program in the store, one scenario each (default: 0 and 3)")
+    ap.add_argument("--programs", nargs="+", choices=["generated", "replicated"], default=["generated", "replicated"])
     ap.add_argument("--real", type=Path, default=ROOT / "examples" / "shaft_two_setups.stp",
                     help="the real program to replicate (default: the shipped example)")
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
@@ -121,7 +124,9 @@ def main() -> None:
             replicate(args.real, size, programs[f"replicated {size:,}"])
         repeat = 1 if size >= 1_000_000 else args.repeat
         for name, path in programs.items():
-            for others in (0, 3):
+            if name.split()[0] not in args.programs:
+                continue
+            for others in args.others:
                 with tempfile.TemporaryDirectory(dir=args.data) as work:
                     r = scenario(path, others, repeat, Path(work))
                 load, rep, unl = r["load"], r["replace"], r["unload"]
@@ -129,7 +134,7 @@ def main() -> None:
                 def cell(x: dict[str, float | str | None]) -> str:
                     return f"{x['wall']:5.1f}/{x['cpu']:5.1f} s {x['rss_mb']:5.0f} MB"
 
-                print(f"{name:>22} {'it alone' if not others else 'beside 3 others':>15} | {cell(load)} | "
+                print(f"{name:>22} {'it alone' if not others else f'beside {others} others':>15} | {cell(load)} | "
                       f"{cell(rep)} {float(rep['wall']) / float(load['wall']):4.2f}x {rep['removal']:>7} | "
                       f"{cell(unl)} {float(unl['wall']) / float(load['wall']):4.2f}x {unl['removal']:>7} "
                       f"{unl['disk_mb']:5.0f} MB", flush=True)
