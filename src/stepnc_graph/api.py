@@ -16,7 +16,7 @@ from typing import Any
 
 from stepnc_graph.export import export
 from stepnc_graph.loader import LoadResult, Progress, load_file
-from stepnc_graph.naming import P21_NS, default_graph_iri, instance_prefix
+from stepnc_graph.naming import P21_NS, default_graph_iri, derived_graph_iri, instance_prefix
 from stepnc_graph.store import GraphStore, default_store_path
 
 __all__ = ["GraphInfo", "LoadResult", "export", "graph_iri_for", "info", "load", "open_store", "unload"]
@@ -50,8 +50,8 @@ def load(store: GraphStore, paths: Iterable[str | Path], *, lenient: bool = Fals
 
 
 def unload(store: GraphStore, graph: str) -> bool:
-    """Remove a file's graph; False if there was none."""
-    return store.remove_graph(graph)
+    """Remove a file's graph and its derived layer; False if there was none."""
+    return store.remove_graph(graph, companions=(derived_graph_iri(graph),))
 
 
 @dataclass(frozen=True)

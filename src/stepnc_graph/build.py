@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from stepnc_graph.generators.generic import GenericVocabularyGenerator
 from stepnc_graph.generators.html import HtmlReferenceGenerator
 from stepnc_graph.generators.jsonld import JsonLdContextGenerator
 from stepnc_graph.generators.owl import OwlGenerator
@@ -30,6 +31,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     naming = catalog.naming
     out: dict[str, str] = {}
     for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
+        out[f"ontology/{rel}"] = text
+    for rel, text in GenericVocabularyGenerator(model, naming).outputs().items():
         out[f"ontology/{rel}"] = text
     for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
         out[f"ontology/{rel}"] = text

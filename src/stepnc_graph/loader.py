@@ -21,10 +21,21 @@ from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
 from stepnc_graph.mapping.plan import iso14649_plans
-from stepnc_graph.naming import P21_NS, TOOL_IRI, alias_iri, default_graph_iri, instance_prefix, section_iri
+from stepnc_graph.derive import derive
+from stepnc_graph.naming import (
+    P21_NS,
+    TOOL_IRI,
+    VOCABULARY_GRAPH,
+    alias_iri,
+    default_graph_iri,
+    derived_graph_iri,
+    instance_prefix,
+    section_iri,
+)
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.reader import Header, Part21Reader
 from stepnc_graph.store import GraphStore
+from stepnc_graph.vocabulary import ensure_vocabulary
 
 DCT = "http://purl.org/dc/terms/"
 OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
@@ -45,7 +56,11 @@ Progress = Callable[[int, int], None]
 
 @dataclass
 class LoadResult:
-    """What one file's load did; ``instances`` counts mapped and raw instances."""
+    """What one file's load did; ``instances`` counts mapped and raw instances.
+
+    ``triples`` are the file's graph; ``derived_triples`` its derived layer
+    (``<graph>/derived``, see :mod:`stepnc_graph.derive`).
+    """
 
     path: str
     graph: str
@@ -53,13 +68,14 @@ class LoadResult:
     raw: int = 0
     triples: int = 0
     defined: int = 0
+    derived_triples: int = 0
     seconds: float = 0.0
     diagnostics: list[Diagnostic] = field(default_factory=list)
 
     def asdict(self) -> dict[str, Any]:
         return {
             "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
-            "triples": self.triples, "seconds": round(self.seconds, 3),
+            "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
             "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
         }
 
@@ -254,9 +270,13 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
 
     Raises :class:`~stepnc_graph.part21.Part21SyntaxError` in strict mode when
     the file does not parse; the store is then unchanged. Loading the same file
-    again replaces its graph.
+    again replaces its graph. The file's derived layer (``<graph>/derived``)
+    and, when missing or stale, the store's vocabulary graph are written in
+    the same atomic load. A ``ValueError`` names a graph IRI that is reserved
+    (the vocabulary graph, another file's derived layer).
     """
     job = _Load.of_file(path, lenient, base_iri, progress)
+    _check_graph_name(store, job.graph)
     extra: list[Diagnostic] = []
 
     def before_commit(target: Callable[[str], str]) -> None:
@@ -267,8 +287,18 @@ def load_file(store: GraphStore, path: str | Path, *, lenient: bool = False, bas
         count = len(job.diagnostics()) + len(extra)
         store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")
         job.result.triples += 1
+        ensure_vocabulary(store)
+        job.result.derived_triples = derive(store, job.graph, target).triples
 
-    store.replace_graph(job.graph, job.chunks(), before_commit)
+    store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))
     job.result.seconds = time.perf_counter() - job.started
     return job.result
+
+
+def _check_graph_name(store: GraphStore, graph: str) -> None:
+    """Refuse graph IRIs that would overwrite the vocabulary or another file's derived layer."""
+    if graph == VOCABULARY_GRAPH or graph.endswith("/derived") and any(
+            derived_graph_iri(g) == graph for g in store.graphs()):
+        raise ValueError(f"{graph} is reserved (the vocabulary graph or a loaded file's derived layer); "
+                         f"choose another --base-iri")

@@ -18,6 +18,13 @@ Scheme (documented in ``ontology/README.md``, stable for good):
   ``.../data/<file name>``, or ``--base-iri``) and the instance ``#12`` of it is
   ``<base IRI>/i12`` (``<base IRI>i12`` when the base ends in ``/`` or ``#``):
   the same file content and base IRI always give the same IRIs;
+* stepnc-graph's own terms for querying live outside the ISO namespace: one
+  generic property per EXPRESS attribute name, ``.../attribute#its_id``
+  (prefix ``attr:``; every ``stepnc:<entity>.its_id`` is a sub-property of
+  it), and the analysis vocabulary ``.../analysis#`` (prefix ``sga:``) for
+  what the standard leaves implicit (roughing and finishing operations, the
+  execution order); a file's derived layer is the graph ``<base IRI>/derived``
+  and its execution steps are ``<base IRI>/derived/step<n>``;
 * an instance with an ``its_id`` label that no other instance of the same
   scope shares also gets an alias ``<base IRI>/id/<scope>/<its_id>``
   (percent-encoded; the scope is the entity declaring ``its_id``, such as
@@ -38,6 +45,13 @@ ONTOLOGY_BASE = "https://w3id.org/stepnc-graph/iso14649/"
 P21_NS = "https://w3id.org/stepnc-graph/p21#"
 P21_ONTOLOGY = "https://w3id.org/stepnc-graph/p21"
 
+#: Generic attribute properties, one per EXPRESS attribute name (prefix ``attr:``).
+ATTRIBUTE_NS = "https://w3id.org/stepnc-graph/attribute#"
+ATTRIBUTE_ONTOLOGY = "https://w3id.org/stepnc-graph/attribute"
+#: The analysis vocabulary: terms for what ISO 14649 leaves implicit (prefix ``sga:``).
+ANALYSIS_NS = "https://w3id.org/stepnc-graph/analysis#"
+ANALYSIS_ONTOLOGY = "https://w3id.org/stepnc-graph/analysis"
+
 DATA_BASE = "https://w3id.org/stepnc-graph/data/"
 #: The named graph holding the vocabulary (ontology/*.ttl) in a store.
 VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
@@ -45,6 +59,8 @@ TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
 
 STEPNC = Namespace(STEPNC_NS)
 P21 = Namespace(P21_NS)
+ATTR = Namespace(ATTRIBUTE_NS)
+SGA = Namespace(ANALYSIS_NS)
 
 
 @dataclass(frozen=True)
@@ -96,6 +112,21 @@ def derived_graph_iri(graph_iri: str) -> str:
     load and removed with it, and the Part 21 writer never reads it.
     """
     return f"{instance_prefix(graph_iri)}derived"
+
+
+def generic_attribute(name: str) -> URIRef:
+    """The generic property of every attribute called ``name``, whatever entity declares it."""
+    return URIRef(ATTRIBUTE_NS + name.lower())
+
+
+def analysis_term(name: str) -> URIRef:
+    """A term of the analysis vocabulary (``sga:RoughingOperation``, ``sga:next``, ...)."""
+    return URIRef(ANALYSIS_NS + name)
+
+
+def execution_step_iri(graph_iri: str, index: int) -> str:
+    """The ``index``-th (1-based) step of a file's flattened execution order, in its derived layer."""
+    return f"{derived_graph_iri(graph_iri)}/step{index}"
 
 
 def section_iri(graph_iri: str, index: int) -> str:

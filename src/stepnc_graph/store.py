@@ -36,6 +36,8 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
+
 STORE_ENV = "STEPNC_GRAPH_STORE"
 DEFAULT_STORE = ".stepnc-graph"
 FORMAT_VERSION = 1
@@ -264,8 +266,11 @@ class GraphStore:
     # -- reading ------------------------------------------------------------------------
 
     def graphs(self) -> list[str]:
-        return sorted(g.value for g in self._store.named_graphs()
-                      if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING))
+        """The loaded files' graphs: not staging graphs, the vocabulary graph or a file's derived layer."""
+        names = {g.value for g in self._store.named_graphs()
+                 if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING)}
+        names.discard(VOCABULARY_GRAPH)
+        return sorted(names - {derived_graph_iri(g) for g in names})
 
     def has_graph(self, graph: str) -> bool:
         return self._store.contains_named_graph(ox.NamedNode(graph))
