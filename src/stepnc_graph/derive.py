@@ -38,7 +38,6 @@ need walks over ``rdf:List`` chains, done in Python over a few SELECTs.
 
 from __future__ import annotations
 
-import threading
 from collections import defaultdict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -420,40 +419,14 @@ def derive(store: GraphStore, graph: str, target: Callable[[str], str],
     quads = lists.index_quads(node) + [ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values)]
     text = "".join(order.triples(graph) + order.feature_triples() + [f"<{layer}> {_sga('layerOf')} <{graph}> .\n"])
     constructed = reader.construct(rules.construct)
-    _bulk_write(store, node, [constructed, text.encode("utf-8")], quads)
+    # One bulk load for the text (each bulk load call costs ~0.1 s of file ingestion
+    # on disk, whatever its size) and a plain transaction for the few quads that
+    # hold blank nodes (measured: 8 ms for 2000 quads, against 110 ms in bulk).
+    store.oxigraph.bulk_load(constructed + text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=node)
+    store.oxigraph.extend(quads)
     return DerivedLayer(layer, constructed.count(b"\n") + text.count("\n") + len(quads), steps)
-
-
-def _bulk_write(store: GraphStore, graph: ox.NamedNode, documents: list[bytes], quads: list[ox.Quad]) -> None:
-    """Write N-Triples ``documents`` and ``quads`` into ``graph`` with Oxigraph's bulk loader.
-
-    The first document loads in this thread, the rest (and the quads) in
-    others at the same time (pyoxigraph releases the GIL while loading): on
-    two cores that nearly halves the time the derived layer adds to a load.
-    Not transactional by itself; the caller runs inside an atomic replacement.
-    """
-    errors: list[BaseException] = []
-
-    def load(data: bytes | list[ox.Quad]) -> None:
-        try:
-            if isinstance(data, list):
-                store.oxigraph.bulk_extend(data)
-            elif data:
-                store.oxigraph.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=graph)
-        except BaseException as exc:  # noqa: BLE001 -- re-raised in the caller's thread
-            errors.append(exc)
-
-    threads = [threading.Thread(target=load, args=(d,), daemon=True) for d in [*documents[1:], quads]]
-    for t in threads:
-        t.start()
-    load(documents[0])
-    for t in threads:
-        t.join()
-    if errors:
-        raise errors[0]
 
 
 def superclasses(class_iri: str, rules: DeriveRules | None = None) -> tuple[str, ...]:
     """The superclasses the derived layer gives an instance of ``class_iri`` (empty for resources)."""
     return (rules or iso14649_rules()).superclasses.get(class_iri, ())
-

@@ -166,21 +166,15 @@ def digest(files: tuple[Path, ...]) -> str:
 
 
 @lru_cache(maxsize=4)
-def _snapshot(files: tuple[Path, ...], stamps: tuple[float, ...]) -> tuple[str, str]:
-    """The N-Triples of the files plus the digest triple, and the digest (cached per file state)."""
-    del stamps  # part of the cache key only
-    value = digest(files)
-    parts = [ox.serialize(ox.parse(path=str(p), format=ox.RdfFormat.TURTLE), format=ox.RdfFormat.N_TRIPLES)
-             for p in files]
-    text = b"".join(part or b"" for part in parts).decode("utf-8")
-    text += f'<{VOCABULARY_GRAPH}> <{DIGEST}> "{value}" .\n'
-    return text, value
+def _digest(files: tuple[Path, ...], stamps: tuple[float, ...]) -> str:
+    del stamps  # part of the cache key only: a rewritten file is read again
+    return digest(files)
 
 
-def vocabulary_ntriples(directory: Path | None = None) -> tuple[str, str]:
-    """(N-Triples of the vocabulary graph, digest) for the shipped ontology files."""
+def vocabulary_digest(directory: Path | None = None) -> str:
+    """The digest of the shipped ontology files (cached per file state)."""
     files = vocabulary_files(directory)
-    return _snapshot(files, tuple(p.stat().st_mtime for p in files))
+    return _digest(files, tuple(p.stat().st_mtime for p in files))
 
 
 def stored_digest(store: GraphStore) -> str | None:
@@ -197,20 +191,31 @@ def vocabulary_status(store: GraphStore, directory: Path | None = None) -> str:
     found = stored_digest(store)
     if found is None:
         return "missing"
-    return "current" if found == vocabulary_ntriples(directory)[1] else "stale"
+    return "current" if found == vocabulary_digest(directory) else "stale"
 
 
 def ensure_vocabulary(store: GraphStore, directory: Path | None = None) -> bool:
     """Write the vocabulary graph when it is missing or stale; True if it was written.
 
     Called by the loader inside a file's atomic load (``before_commit``), so
-    on disk the rewrite is covered by the load's checkpoint (which is why the
-    non-transactional bulk loader is safe here).
+    on disk the rewrite is covered by the load's checkpoint.
     """
-    text, value = vocabulary_ntriples(directory)
+    value = vocabulary_digest(directory)
     if stored_digest(store) == value:
         return False
     graph = ox.NamedNode(VOCABULARY_GRAPH)
     store.oxigraph.remove_graph(graph)
-    store.oxigraph.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=graph)
+    store.oxigraph.extend(vocabulary_quads(graph, directory))
     return True
+
+
+def vocabulary_quads(graph: ox.NamedNode, directory: Path | None = None) -> list[ox.Quad]:
+    """The vocabulary graph's content: every ontology file's triples and the digest.
+
+    Parsed to quads (not loaded file by file) so the graph is written in one
+    transaction and blank nodes of different files stay apart.
+    """
+    quads = [ox.Quad(t.subject, t.predicate, t.object, graph)
+             for path in vocabulary_files(directory)
+             for t in ox.parse(path=str(path), format=ox.RdfFormat.TURTLE)]
+    return quads + [ox.Quad(graph, ox.NamedNode(DIGEST), ox.Literal(vocabulary_digest(directory)), graph)]
