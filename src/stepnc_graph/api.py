@@ -5,6 +5,7 @@
     [result] = sg.load(store, ["part.stp"], lenient=True)
     print(result.instances, result.triples, result.diagnostics)
     turtle = sg.export(store, "ttl", result.graph)
+    rows = sg.query(store, "tool-changes").rows     # a library query; keyword arguments are parameters
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ from typing import Any
 from stepnc_graph.export import export
 from stepnc_graph.loader import LoadResult, Progress, load_file
 from stepnc_graph.naming import P21_NS, default_graph_iri, derived_graph_iri, instance_prefix
+from stepnc_graph.query import QueryResult, query
 from stepnc_graph.store import GraphStore, default_store_path
 
-__all__ = ["GraphInfo", "LoadResult", "export", "graph_iri_for", "info", "load", "open_store", "unload"]
+__all__ = ["GraphInfo", "LoadResult", "QueryResult", "export", "graph_iri_for", "info", "load", "open_store", "query",
+           "unload"]
 
 
 def open_store(path: str | Path | None = None, memory: bool = False) -> GraphStore:

@@ -19,9 +19,10 @@ same atomic load, replaced and removed with the file:
   of ISO 14649 attributes;
 * **execution order** -- one ``sga:ExecutionStep`` per workingstep in the
   flattened order of the program (:class:`ExecutionOrder`), with
-  ``sga:order``, ``sga:executes``, ``sga:workplan``, ``sga:setup`` and
-  ``sga:next``; and ``sga:feature`` from each workingstep to the features
-  it machines.
+  ``sga:order``, ``sga:executes``, ``sga:workplan``, ``sga:setup``,
+  ``sga:next``, ``sga:tool`` and ``sga:toolBefore`` (so a tool change is a
+  step whose two differ); and ``sga:feature`` from each workingstep to the
+  features it machines.
 
 What is *not* derived, to keep loads fast (the target is a load rate at most
 15 % below a load without this layer; see ``bench/query_bench.py``): nothing
@@ -102,6 +103,8 @@ class DeriveRules:
     list_properties: tuple[str, ...]
     workingsteps: frozenset[str]
     structures: frozenset[str]
+    operation_properties: tuple[str, ...]
+    tool_properties: tuple[str, ...]
     executables: tuple[str, ...]
     superclasses: dict[str, tuple[str, ...]] = field(compare=False)
     generic: dict[str, str] = field(compare=False)
@@ -166,6 +169,8 @@ def compile_rules(model: SchemaModel, naming: Naming) -> DeriveRules:
         list_properties=tuple(sorted(lists)),
         workingsteps=frozenset(n for n in executable if model.is_subtype(n, "workingstep")),
         structures=frozenset(n for n in executable if model.is_subtype(n, "program_structure")),
+        operation_properties=tuple(sorted(p for p, g in generic.items() if g.endswith("#its_operation"))),
+        tool_properties=tuple(sorted(p for p, g in generic.items() if g.endswith("#its_tool"))),
         executables=tuple(sorted(n for n in executable if not model.entity(n).abstract)),
         superclasses={str(naming.declaration(c)): tuple(_iri(naming, s)[1:-1] for s in ss)
                       for c, ss in closure.items()},
@@ -311,6 +316,11 @@ class ExecutionOrder:
                                               "turning_workingstep.its_features")]
         for s, p, o in reader.select(f"SELECT ?s ?p ?o WHERE {{ VALUES ?p {{ {_values(names)} }} ?s ?p ?o }}"):
             self.edges[(s, p.value[len(STEPNC_NS):])].append(o)
+        self.tool: dict[Term, Term] = {}  # workingstep -> the tool of its operation
+        for ws, tool in reader.select(
+                f"SELECT ?ws ?tool WHERE {{ VALUES ?p {{ {_values(rules.operation_properties)} }} "
+                f"VALUES ?q {{ {_values(rules.tool_properties)} }} ?ws ?p ?op . ?op ?q ?tool }}"):
+            self.tool[ws] = tool
         self.steps: list[Step] = []
 
     def one(self, node: ox.NamedNode, prop: str) -> Term | None:
@@ -364,8 +374,9 @@ class ExecutionOrder:
         out = []
         iri = [f"<{execution_step_iri(graph, s.order)}>" for s in self.steps]
         cls = _sga("ExecutionStep")
-        order, executes, workplan, setup, nxt = (_sga(n) for n in ("order", "executes", "workplan", "setup",
-                                                                   "next"))
+        order, executes, workplan, setup, nxt, tool, before = (
+            _sga(n) for n in ("order", "executes", "workplan", "setup", "next", "tool", "toolBefore"))
+        spindle: Term | None = None  # the tool of the last step that had one
         for i, s in enumerate(self.steps):
             me = iri[i]
             out += [f"{me} {RDF_TYPE} {cls} .\n", f"{me} {order} {_integer(s.order)} .\n",
@@ -374,6 +385,14 @@ class ExecutionOrder:
                 out.append(f"{me} {workplan} {s.workplan} .\n")
             if s.setup is not None:
                 out.append(f"{me} {setup} {s.setup} .\n")
+            if i > 0 and self.steps[i - 1].root != s.root:
+                spindle = None  # another project: its first tool is a load, not a change
+            if spindle is not None:
+                out.append(f"{me} {before} {spindle} .\n")
+            used = self.tool.get(s.workingstep)
+            if isinstance(used, ox.NamedNode):
+                out.append(f"{me} {tool} {used} .\n")
+                spindle = used
             if i + 1 < len(self.steps) and self.steps[i + 1].root == s.root:
                 out.append(f"{me} {nxt} {iri[i + 1]} .\n")
         return out

@@ -100,6 +100,12 @@ ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
                      "The setup in force: that of the nearest enclosing workplan which names one "
                      "(ISO 14649-10 gives setups to workplans, not to workingsteps)."),
     AnalysisProperty("next", "object", "ExecutionStep", "The step executed right after this one."),
+    AnalysisProperty("tool", "object", "ExecutionStep",
+                     "The machining tool of the step's operation (absent for steps without one, such as a "
+                     "rapid movement)."),
+    AnalysisProperty("toolBefore", "object", "ExecutionStep",
+                     "The tool of the nearest earlier step that has one: the tool in the spindle when this step "
+                     "starts. A step whose sga:tool differs from it is a tool change."),
     AnalysisProperty("feature", "object", None,
                      "A manufacturing feature a workingstep machines: its_feature of a machining_workingstep, "
                      "each member of its_features of a turning_workingstep."),
