@@ -364,7 +364,7 @@ class QueryResult:
     def to_dataframe(self) -> Any:
         """The rows as a pandas DataFrame (needs pandas; ``pip install pandas``)."""
         try:
-            import pandas as pd  # type: ignore[import-untyped]
+            import pandas as pd
         except ImportError:
             raise ImportError("to_dataframe() needs pandas: pip install pandas") from None
         return pd.DataFrame(self.rows, columns=self.variables)

@@ -2,7 +2,7 @@
 
 One module per command group, each a thin layer over the Python API:
 :mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info),
-:mod:`.query` (query, queries).
+:mod:`.query` (query, queries), :mod:`.plan`.
 Shared pieces (consoles, exit codes, store options) are in :mod:`.common`.
 
 Exit codes, for scripts: 0 ok; 1 the data does not conform (diagnostics, a
@@ -15,7 +15,7 @@ from __future__ import annotations
 import click
 
 from stepnc_graph import __version__
-from stepnc_graph.cli import ontology, query, schema, store
+from stepnc_graph.cli import ontology, plan, query, schema, store
 from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_NONCONFORMING, EXIT_OK
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_NONCONFORMING", "EXIT_OK", "main"]
@@ -39,3 +39,4 @@ for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_c
     main.add_command(command)
 main.add_command(query.query_cmd)
 main.add_command(query.queries_cmd)
+main.add_command(plan.plan_cmd)
