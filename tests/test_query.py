@@ -286,3 +286,16 @@ def test_warnings_for_a_store_without_vocabulary_or_layer(tmp_path: Path) -> Non
     result = sg.query(s, "tool-changes")
     assert any("vocabulary graph is missing" in w for w in result.warnings)
     assert any("no derived layer" in w for w in result.warnings)
+
+
+def test_html_reference_helps_an_analyst() -> None:
+    html = (ROOT / "docs" / "ontology.html").read_text(encoding="utf-8")
+    for name in NAMES:  # every library query is listed as an example
+        assert f"<code>{name}</code>" in html
+    assert 'id="index"' in html and 'id="az-w"' in html and 'id="core"' in html
+    section = html[html.index('id="machining_workingstep"'):]
+    section = section[:section.index("</section>")]
+    assert "its_id (executable)" in section and "<code>attr:its_operation</code>" in section
+    assert '<a href="#machining_operation"><code>machining_operation</code></a>' in section  # type linked
+    used = html[html.index('id="setup"'):]
+    assert "Used by" in used[:used.index("</section>")] and "workplan</code></a>.<code>its_setup" in used

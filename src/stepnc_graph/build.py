@@ -38,7 +38,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"ontology/{rel}"] = text
     for rel, text in JsonLdContextGenerator(naming).outputs().items():
         out[f"ontology/{rel}"] = text
-    for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():
+    queries = catalog.directory.parent.parent / "queries"  # the library's examples, where there is one
+    for rel, text in HtmlReferenceGenerator(model, catalog, naming, queries).outputs().items():
         out[f"docs/{rel}"] = text
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
         out[f"src/stepnc_graph/{rel}"] = text
