@@ -90,16 +90,22 @@ class GenericVocabularyGenerator:
         shape = value_shape(self.model, self.n, a.type)
         return shape.form != "list" and shape.leaf.form == "literal"
 
-    def generic_graph(self) -> Graph:
+    def _ontology(self, iri: str, label: str, comment: str) -> tuple[Graph, URIRef]:
+        """A new graph holding the ontology header of ``iri``."""
         g = self._graph()
-        o = URIRef(ATTRIBUTE_ONTOLOGY)
+        o = URIRef(iri)
         g.add((o, RDF.type, OWL.Ontology))
-        g.add((o, RDFS.label, Literal("attribute")))
-        g.add((o, RDFS.comment, Literal(
+        g.add((o, RDFS.label, Literal(label)))
+        g.add((o, RDFS.comment, Literal(comment)))
+        return g, o
+
+    def generic_graph(self) -> Graph:
+        g, o = self._ontology(
+            ATTRIBUTE_ONTOLOGY, "attribute",
             "Generic attribute properties of stepnc-graph: one per EXPRESS attribute name, each per-entity "
             "property of the ISO 14649 vocabulary a sub-property of it. Loaded files carry their values in "
             "their derived layer (<graph>/derived) for the process entities of the ISO 14649 schemas (not for "
-            "ISO 10303 resources, toolpaths, tolerances and parameters).")))
+            "ISO 10303 resources, toolpaths, tolerances and parameters).")
         derived = derived_entities(self.model)
         for name, attrs in attributes_by_name(self.model).items():
             p = generic_attribute(name)
@@ -121,14 +127,11 @@ class GenericVocabularyGenerator:
         return g
 
     def analysis_graph(self) -> Graph:
-        g = self._graph()
-        o = URIRef(ANALYSIS_ONTOLOGY)
-        g.add((o, RDF.type, OWL.Ontology))
-        g.add((o, RDFS.label, Literal("analysis")))
-        g.add((o, RDFS.comment, Literal(
+        g, o = self._ontology(
+            ANALYSIS_ONTOLOGY, "analysis",
             "stepnc-graph's analysis vocabulary: what ISO 14649 leaves implicit (classes of roughing and "
             "finishing operations, thread cutting tools, the flattened execution order of a program), and "
-            "own-words definitions of the core process entities. Not ISO terms.")))
+            "own-words definitions of the core process entities. Not ISO terms.")
         for c in ANALYSIS_CLASSES:
             iri = analysis_term(c.name)
             g.add((iri, RDF.type, OWL.Class))
