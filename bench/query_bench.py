@@ -242,7 +242,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000])
     ap.add_argument("--repeat", type=int, default=5, help="timed runs per query (after one warm-up)")
-    ap.add_argument("--load-repeat", type=int, default=3, help="loads with and without the layer (1M: 1)")
+    ap.add_argument("--load-repeat", type=int, default=3, help="loads with and without the layer (1M: 1; 0: skip)")
     ap.add_argument("--rdflib-max", type=int, default=100_000, help="largest size also run in rdflib")
     ap.add_argument("--rdflib-timeout", type=float, default=120, help="seconds per rdflib query")
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
@@ -263,7 +263,8 @@ def main() -> None:
             write(size, path)
         work = Path(tempfile.mkdtemp(prefix="stepnc-query-bench-", dir=args.data))
         try:
-            report_load(size, measure_loads(path, work, 1 if size >= 1_000_000 else args.load_repeat))
+            if args.load_repeat > 0:  # 0: queries only
+                report_load(size, measure_loads(path, work, 1 if size >= 1_000_000 else args.load_repeat))
             store_dir = work / "store"
             run_child("load", str(path), str(store_dir), "on")
             ox_times = measure_queries(store_dir, args.repeat)
