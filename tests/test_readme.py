@@ -6,9 +6,14 @@ import os
 import re
 import shlex
 import shutil
+import socket
 import subprocess
 import sys
+import time
+import urllib.request
 from pathlib import Path
+
+import pytest
 
 from conftest import ROOT
 
@@ -36,3 +41,63 @@ def test_every_tour_line_runs_as_printed(tmp_path: Path) -> None:
         done = subprocess.run([*CLI, *argv[1:]], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
         assert done.returncode == expected, (argv, done.returncode, done.stdout[-800:], done.stderr[-800:])
         assert "Traceback" not in done.stderr
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _wait_for(url: str, process: subprocess.Popen[bytes]) -> None:
+    for _ in range(300):
+        if process.poll() is not None:
+            raise AssertionError(f"{process.args} exited with {process.returncode}")
+        try:
+            with urllib.request.urlopen(f"{url}/query?query=ASK%7B%7D", timeout=1):
+                return
+        except OSError:
+            time.sleep(0.1)
+    raise AssertionError(f"{url} did not answer")
+
+
+def test_linked_data_lines_run_as_printed(tmp_path: Path) -> None:
+    """The serve / --endpoint example: each line as printed (free ports instead of 7878 and 7879)."""
+    oxigraph = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
+    if not Path(oxigraph).exists():
+        pytest.skip("the Oxigraph server (pip install oxigraph, a test extra) is not installed")
+    text = (ROOT / "README.md").read_text()
+    block = text.split("## Linked data: serving", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
+    shutil.copytree(ROOT / "examples", tmp_path / "examples")
+    env = {**os.environ, "STEPNC_GRAPH_STORE": str(tmp_path / "store")}
+    ports = {"7878": str(_free_port()), "7879": str(_free_port())}
+    outputs: list[str] = []
+    background: list[subprocess.Popen[bytes]] = []
+    try:
+        for line in block.strip().splitlines():
+            command = line.partition(" #")[0]
+            for printed, free in ports.items():
+                command = command.replace(printed, free)
+            argv = shlex.split(command)
+            program = {"stepnc-graph": CLI, "oxigraph": [oxigraph], "curl": [shutil.which("curl") or "curl"]}
+            if argv[0] == "curl" and shutil.which("curl") is None:
+                continue  # the endpoint itself is exercised by the lines after it and by test_serve.py
+            full = [*program[argv[0]], *argv[1:]]
+            if argv[-1] == "&":
+                process = subprocess.Popen(full[:-1], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                                           stderr=subprocess.DEVNULL)
+                background.append(process)
+                port = next(p for p in ports.values() if p in command)
+                _wait_for(f"http://127.0.0.1:{port}", process)
+                continue
+            done = subprocess.run(full, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+            assert done.returncode == 0, (argv, done.returncode, done.stdout[-800:], done.stderr[-800:])
+            outputs.append(done.stdout)
+    finally:
+        for process in background:
+            process.terminate()
+            process.wait(timeout=30)
+    joined = "\n".join(outputs)
+    assert "T02 GROOVING 3MM" in joined and '"@context"' in joined
+    if shutil.which("curl"):
+        assert "https://w3id.org/stepnc-graph/data/shaft_two_setups.stp" in outputs[1]

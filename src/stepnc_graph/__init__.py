@@ -6,6 +6,7 @@ The Python API (see :mod:`stepnc_graph.api`)::
     store = sg.open_store(memory=True)
     [result] = sg.load(store, ["examples/shaft_two_setups.stp"])
     sg.export(store, "ttl", result.graph)
+    sg.query(store, "workingsteps-by-tool-type", tool_type="grooving_tool").rows
 
 The API names are imported on first use (module ``__getattr__``), so that
 ``import stepnc_graph.cli`` -- every command, even ``--help`` -- does not pay
@@ -25,17 +26,19 @@ if TYPE_CHECKING:
         GraphInfo,
         LinkResult,
         LoadResult,
+        QueryResult,
         export,
         info,
         link,
         load,
         open_store,
+        query,
         unload,
         validate,
     )
 
-__all__ = ["GraphInfo", "LinkResult", "LoadResult", "__version__", "export", "info", "link", "load", "open_store",
-           "unload", "validate"]
+__all__ = ["GraphInfo", "LinkResult", "LoadResult", "QueryResult", "__version__", "export", "info", "link", "load",
+           "open_store", "query", "unload", "validate"]
 
 
 class _Package(types.ModuleType):

@@ -5,6 +5,7 @@
     [result] = sg.load(store, ["part.stp"], lenient=True)
     print(result.instances, result.triples, result.diagnostics)
     turtle = sg.export(store, "ttl", result.graph)
+    rows = sg.query(store, "tool-changes").rows     # a library query; keyword arguments are parameters
 """
 
 from __future__ import annotations
@@ -12,18 +13,35 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
 
-from stepnc_graph.export import export
-from stepnc_graph.link import LinkResult, link
 from stepnc_graph.loader import LoadResult, Progress, load_source
-from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
 from stepnc_graph.naming import P21_NS, derived_graph_iri
+from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
 from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path
-from stepnc_graph.validate import validate
 
-__all__ = ["GraphInfo", "LinkResult", "LoadResult", "SourceError", "StoreBusy", "StoreError", "export", "info",
-           "link", "load", "open_store", "unload", "validate"]
+if TYPE_CHECKING:
+    from stepnc_graph.export import export
+    from stepnc_graph.link import LinkResult, link
+    from stepnc_graph.query import QueryResult, query
+    from stepnc_graph.validate import validate
+
+#: API names whose modules are imported on first use: `load` (the commonest command) does not
+#: pay for the exporters, the SHACL engine or the link and query layers.
+_LAZY = {"export": "stepnc_graph.export", "link": "stepnc_graph.link", "LinkResult": "stepnc_graph.link",
+         "query": "stepnc_graph.query", "QueryResult": "stepnc_graph.query", "validate": "stepnc_graph.validate"}
+
+__all__ = ["GraphInfo", "LinkResult", "LoadResult", "QueryResult", "SourceError", "StoreBusy", "StoreError", "export",
+           "info", "link", "load", "open_store", "query", "unload", "validate"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,

@@ -3,6 +3,8 @@
 Paths are relative to a project root: ``ontology/*.ttl``, ``shapes/*.ttl``,
 ``ontology/compiled-model.json`` (the resolved model and mapping plans that
 commands read instead of the EXPRESS, see :mod:`stepnc_graph.schema.cache`),
+``shapes/compiled-checks.json`` (the shapes as SPARQL checks, see
+:mod:`stepnc_graph.validate.compiled`),
 ``docs/ontology.html`` and ``src/stepnc_graph/vocab.py``.
 """
 
@@ -11,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from stepnc_graph.generators.generic import GenericVocabularyGenerator
 from stepnc_graph.generators.html import HtmlReferenceGenerator
 from stepnc_graph.generators.jsonld import JsonLdContextGenerator
 from stepnc_graph.generators.owl import OwlGenerator
@@ -20,6 +23,7 @@ from stepnc_graph.generators.shacl import ShapesGenerator
 from stepnc_graph.mapping.plan import Plans
 from stepnc_graph.schema import cache
 from stepnc_graph.schema.catalog import load_catalog_model
+from stepnc_graph.validate import compiled
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     out: dict[str, str] = {}
     for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
         out[f"ontology/{rel}"] = text
+    for rel, text in GenericVocabularyGenerator(model, naming).outputs().items():
+        out[f"ontology/{rel}"] = text
     for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
         out[f"ontology/{rel}"] = text
     plans = Plans(model, naming)
@@ -43,13 +49,27 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"ontology/{rel}"] = text
     digest = cache.express_digest(catalog.directory)
     out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
-    for rel, text in ShapesGenerator(model, catalog, naming).outputs().items():
+    shapes = ShapesGenerator(model, catalog, naming).outputs()
+    for rel, text in shapes.items():
         out[f"shapes/{rel}"] = text
-    for rel, text in HtmlReferenceGenerator(model, catalog, naming).outputs().items():
+    out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(shapes, catalog.directory.parent.parent / "shapes")
+    queries = catalog.directory.parent.parent / "queries"  # the library's examples, where there is one
+    for rel, text in HtmlReferenceGenerator(model, catalog, naming, queries).outputs().items():
         out[f"docs/{rel}"] = text
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
         out[f"src/stepnc_graph/{rel}"] = text
     return out
+
+
+def compiled_checks(generated: dict[str, str], shapes_directory: Path) -> str:
+    """``shapes/compiled-checks.json``: the checks of the generated shapes and the hand-written
+    process rules (``shapes/process/*.ttl``), in the order ``validate`` reads them."""
+    texts = sorted(generated.items())
+    texts += [(f"process/{p.name}", p.read_text(encoding="utf-8"))
+              for p in sorted((shapes_directory / "process").glob("*.ttl"))]
+    _graph, checks = compiled.compile_texts(texts)
+    value = compiled.digest([(name, text.encode("utf-8")) for name, text in texts])
+    return compiled.dumps([name for name, _ in texts], value, checks)
 
 
 def build(root: Path, check: bool = False) -> BuildResult:

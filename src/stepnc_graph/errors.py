@@ -15,6 +15,10 @@ WINDOW = 60
 _ELLIPSIS = "..."
 
 
+class StepncGraphWarning(UserWarning):
+    """A warning of stepnc-graph's own (the CLI prints these; other libraries' follow Python's filters)."""
+
+
 def _escape_char(ch: str) -> str:
     code = ord(ch)
     if ch == "\t" or (0x20 <= code < 0x7F) or code > 0x9F:

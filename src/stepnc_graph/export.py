@@ -71,23 +71,46 @@ def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,
     return buffer.getvalue()
 
 
-def canonical_quads(store: GraphStore, graph: str | None = None) -> Iterator[ox.Quad]:
-    """The quads of ``graph`` (of every graph, in IRI order, for None) in the canonical order."""
+def canonical_quads(store: GraphStore, graph: str | None = None,
+                    graphs: list[str] | None = None) -> Iterator[ox.Quad]:
+    """The quads of ``graph`` in the canonical order; for None, of ``graphs`` (default: every
+    graph, the vocabulary and derived layers included, and the default graph), in IRI order.
+
+    A blank node keeps one label across graphs (a derived layer's ``sga:index`` is on the list
+    cells of its program graph), so whole-store labels carry the graph's place as well.
+    """
+    labels = _Labels()
     if graph is not None:
-        yield from _graph_quads(store, graph)
+        yield from _graph_quads(store, graph, labels, "")
         return
-    db = store.oxigraph
-    default = sorted(db.quads_for_pattern(None, None, None, ox.DefaultGraph()), key=str)
-    yield from default
-    for name in store.graphs():
-        yield from _graph_quads(store, name)
+    if graphs is None:
+        db = store.oxigraph
+        yield from sorted(db.quads_for_pattern(None, None, None, ox.DefaultGraph()), key=str)
+    for k, name in enumerate(graphs if graphs is not None else store.all_graphs(), start=1):
+        yield from _graph_quads(store, name, labels, f"g{k}")
+
+
+class _Labels:
+    """Canonical blank node labels: ``<scope><root>b<n>``, one per node for a whole export."""
+
+    def __init__(self) -> None:
+        self.of: dict[ox.BlankNode, ox.BlankNode] = {}
+        self.used: dict[str, int] = {}
+
+    def label(self, node: object, prefix: str) -> object:
+        if not isinstance(node, ox.BlankNode):
+            return node
+        if node not in self.of:
+            self.used[prefix] = self.used.get(prefix, 0) + 1
+            self.of[node] = ox.BlankNode(f"{prefix}b{self.used[prefix]}")
+        return self.of[node]
 
 
 def _object_key(term: object) -> tuple[int, str]:
     return (1, "") if isinstance(term, ox.BlankNode) else (0, str(term))
 
 
-def _graph_quads(store: GraphStore, graph: str) -> Iterator[ox.Quad]:
+def _graph_quads(store: GraphStore, graph: str, labels: _Labels, scope: str) -> Iterator[ox.Quad]:
     db = store.oxigraph
     g = ox.NamedNode(graph)
     numbered = sorted((int(str(q.object.value)), q.subject)  # type: ignore[union-attr]
@@ -96,12 +119,18 @@ def _graph_quads(store: GraphStore, graph: str) -> Iterator[ox.Quad]:
     taken = {str(node) for _, node in roots}
     others = sorted((node for node in _named_subjects(store, graph) if str(node) not in taken), key=str)
     roots += [(f"n{k}", node) for k, node in enumerate(others, start=1)]
-    blanks_seen: set[ox.BlankNode] = set()
+    seen: set[ox.BlankNode] = set()
     for prefix, node in roots:
-        yield from _subtree(db, g, prefix, node, blanks_seen)
-    # blank nodes no named subject reaches (none in loaded programs; SPARQL Update can add them)
-    yield from sorted((q for q in db.quads_for_pattern(None, None, None, g)
-                       if isinstance(q.subject, ox.BlankNode) and q.subject not in blanks_seen), key=str)
+        yield from _subtree(db, g, scope + prefix, node, seen, labels)
+    # blank subjects no named subject of this graph reaches: the cells a derived layer indexes
+    # (labelled in their program graph), or what SPARQL Update added (labelled by content)
+    rest = {q.subject for q in db.quads_for_pattern(None, None, None, g)
+            if isinstance(q.subject, ox.BlankNode) and q.subject not in seen}
+    known = sorted((n for n in rest if n in labels.of), key=lambda n: labels.of[n].value)
+    unknown = sorted((n for n in rest if n not in labels.of), key=lambda n: _deep(db, g, n))
+    for node in known + unknown:
+        if node not in seen:
+            yield from _subtree(db, g, scope + "x", node, seen, labels)
 
 
 def _named_subjects(store: GraphStore, graph: str) -> list[ox.NamedNode]:
@@ -112,17 +141,11 @@ def _named_subjects(store: GraphStore, graph: str) -> list[ox.NamedNode]:
 
 
 def _subtree(db: ox.Store, g: ox.NamedNode, prefix: str, root: ox.NamedNode | ox.BlankNode,
-             blanks_seen: set[ox.BlankNode]) -> Iterator[ox.Quad]:
+             seen: set[ox.BlankNode], labels: _Labels) -> Iterator[ox.Quad]:
     """``root``'s quads sorted, then its blank objects' (depth first), relabelled ``_:<prefix>b<n>``."""
-    labels: dict[ox.BlankNode, ox.BlankNode] = {}
-
-    def label(node: object) -> object:
-        if not isinstance(node, ox.BlankNode):
-            return node
-        if node not in labels:
-            labels[node] = ox.BlankNode(f"{prefix}b{len(labels) + 1}")
-        return labels[node]
-
+    if isinstance(root, ox.BlankNode):
+        seen.add(root)
+        labels.label(root, prefix)
     stack: list[ox.NamedNode | ox.BlankNode] = [root]
     while stack:
         subject = stack.pop()
@@ -130,13 +153,32 @@ def _subtree(db: ox.Store, g: ox.NamedNode, prefix: str, root: ox.NamedNode | ox
                        key=lambda q: (q.predicate.value, _object_key(q.object), _shallow(db, g, q.object)))
         children = []
         for q in quads:
-            if isinstance(q.object, ox.BlankNode) and q.object not in blanks_seen:
-                blanks_seen.add(q.object)
-                label(q.object)
+            if isinstance(q.object, ox.BlankNode) and q.object not in seen:
+                seen.add(q.object)
+                labels.label(q.object, prefix)
                 children.append(q.object)
         for q in quads:
-            yield ox.Quad(label(q.subject), q.predicate, label(q.object), g)  # type: ignore[arg-type]
+            yield ox.Quad(labels.label(q.subject, prefix), q.predicate, labels.label(q.object, prefix),  # type: ignore[arg-type]
+                          g)
         stack.extend(reversed(children))
+
+
+def _deep(db: ox.Store, g: ox.NamedNode, node: ox.BlankNode, limit: int = 500) -> str:
+    """A blank node's content down through its blank objects, without labels (up to ``limit``
+    nodes): orders the blank subjects no named subject reaches, such as OWL's
+    ``[ a owl:AllDisjointClasses ; owl:members (...) ]``."""
+    lines: list[str] = []
+    stack: list[tuple[str, ox.BlankNode]] = [("", node)]
+    visited = 0
+    while stack and visited < limit:
+        path, current = stack.pop()
+        visited += 1
+        for q in sorted(db.quads_for_pattern(current, None, None, g), key=lambda q: (q.predicate.value, str(q.object))):
+            if isinstance(q.object, ox.BlankNode):
+                stack.append((f"{path}/{q.predicate.value}", q.object))
+            else:
+                lines.append(f"{path} {q.predicate} {q.object}")
+    return "\n".join(sorted(lines))
 
 
 def _shallow(db: ox.Store, g: ox.NamedNode, term: object) -> str:
@@ -153,4 +195,5 @@ def _jsonld(store: GraphStore, graph: str | None, tree: bool = False) -> bytes:
     :mod:`stepnc_graph.jsonld`."""
     from stepnc_graph.jsonld import export_jsonld
 
-    return export_jsonld(canonical_quads(store, graph), graph, tree)
+    # a JSON-LD document of the store is its programs (and links), what a PLM system takes
+    return export_jsonld(canonical_quads(store, graph, None if graph else store.graphs()), graph, tree)

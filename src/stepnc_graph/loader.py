@@ -21,10 +21,12 @@ import pyoxigraph as ox
 from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
+from stepnc_graph.derive import derive
 from stepnc_graph.mapping.plan import P21_DUPLICATE, P21_LINE, P21_RAW_TEXT, iso14649_plans
 from stepnc_graph.naming import (
     P21_NS,
     TOOL_IRI,
+    VOCABULARY_GRAPH,
     alias_iri,
     default_graph_iri,
     derived_graph_iri,
@@ -35,8 +37,9 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
-from stepnc_graph.sources import Source
-from stepnc_graph.store import Store
+from stepnc_graph.sources import Source, SourceError
+from stepnc_graph.store import GraphStore, Store
+from stepnc_graph.vocabulary import ensure_vocabulary
 
 if TYPE_CHECKING:
     from stepnc_graph.jsonld_load import JsonLdLoad
@@ -59,7 +62,11 @@ Progress = Callable[[int, int], None]
 
 @dataclass
 class LoadResult:
-    """What one file's load did; ``instances`` counts mapped and raw instances."""
+    """What one file's load did; ``instances`` counts mapped and raw instances.
+
+    ``triples`` are the file's graph; ``derived_triples`` its derived layer
+    (``<graph>/derived``, see :mod:`stepnc_graph.derive`).
+    """
 
     path: str
     graph: str
@@ -68,6 +75,7 @@ class LoadResult:
     unreadable: int = 0
     triples: int = 0
     defined: int = 0
+    derived_triples: int = 0
     seconds: float = 0.0
     diagnostics: list[Diagnostic] = field(default_factory=list)
 
@@ -75,7 +83,7 @@ class LoadResult:
         return {
             "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
             "unreadable_instances": self.unreadable,
-            "triples": self.triples, "seconds": round(self.seconds, 3),
+            "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
             "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
         }
 
@@ -312,6 +320,9 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
 
 
 def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
+    """Write a prepared load: the file's graph, its derived layer (``<graph>/derived``) and,
+    when missing or stale, the store's vocabulary graph, in one atomic load."""
+    _check_graph_name(store, job.graph)
     extra: list[Diagnostic] = []
 
     def before_commit(target: Callable[[str], str]) -> None:
@@ -322,8 +333,21 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
         count = len(job.diagnostics()) + len(extra)
         store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")
         job.result.triples += 1
+        if store.path is not None or not isinstance(store, GraphStore):
+            # a persistent store (on disk, or remote) always holds the vocabulary; a
+            # throw-away one gets it when a query first needs it (query.execute)
+            ensure_vocabulary(store)
+        job.result.derived_triples = derive(store, job.graph, target).triples
 
     store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))
     job.result.seconds = time.perf_counter() - job.started
     return job.result
+
+
+def _check_graph_name(store: Store, graph: str) -> None:
+    """Refuse graph IRIs that would overwrite the vocabulary or another file's derived layer."""
+    if graph == VOCABULARY_GRAPH or graph.endswith("/derived") and any(
+            derived_graph_iri(g) == graph for g in store.graphs()):
+        raise SourceError(f"{graph} is reserved (the vocabulary graph or a loaded file's derived layer); "
+                         f"choose another --base-iri")

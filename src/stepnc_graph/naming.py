@@ -18,6 +18,13 @@ Scheme (documented in ``ontology/README.md``, stable for good):
   ``.../data/<file name>``, or ``--base-iri``) and the instance ``#12`` of it is
   ``<base IRI>/i12`` (``<base IRI>i12`` when the base ends in ``/`` or ``#``):
   the same file content and base IRI always give the same IRIs;
+* stepnc-graph's own terms for querying live outside the ISO namespace: one
+  generic property per EXPRESS attribute name, ``.../attribute#its_id``
+  (prefix ``attr:``; every ``stepnc:<entity>.its_id`` is a sub-property of
+  it), and the analysis vocabulary ``.../analysis#`` (prefix ``sga:``) for
+  what the standard leaves implicit (roughing and finishing operations, the
+  execution order); a file's derived layer is the graph ``<base IRI>/derived``
+  and its execution steps are ``<base IRI>/derived/step<n>``;
 * an instance with an ``its_id`` label that no other instance of the same
   scope shares also gets an alias ``<base IRI>/id/<scope>/<its_id>``
   (percent-encoded; the scope is the entity declaring ``its_id``, such as
@@ -42,6 +49,13 @@ ONTOLOGY_BASE = "https://w3id.org/stepnc-graph/iso14649/"
 P21_NS = "https://w3id.org/stepnc-graph/p21#"
 P21_ONTOLOGY = "https://w3id.org/stepnc-graph/p21"
 
+#: Generic attribute properties, one per EXPRESS attribute name (prefix ``attr:``).
+ATTRIBUTE_NS = "https://w3id.org/stepnc-graph/attribute#"
+ATTRIBUTE_ONTOLOGY = "https://w3id.org/stepnc-graph/attribute"
+#: The analysis vocabulary: terms for what ISO 14649 leaves implicit (prefix ``sga:``).
+ANALYSIS_NS = "https://w3id.org/stepnc-graph/analysis#"
+ANALYSIS_ONTOLOGY = "https://w3id.org/stepnc-graph/analysis"
+
 DATA_BASE = "https://w3id.org/stepnc-graph/data/"
 #: The named graph holding the vocabulary (ontology/*.ttl) in a store.
 VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
@@ -53,11 +67,13 @@ CONTEXT_IRI = "https://w3id.org/stepnc-graph/context.jsonld"
 #: ``STEPNC`` and ``P21`` are rdflib Namespaces over the two namespaces above,
 #: made on first use (module ``__getattr__``): rdflib costs about 0.1 s to
 #: import, and loading a program never needs it.
-_NAMESPACES = {"STEPNC": STEPNC_NS, "P21": P21_NS}
+_NAMESPACES = {"STEPNC": STEPNC_NS, "P21": P21_NS, "ATTR": ATTRIBUTE_NS, "SGA": ANALYSIS_NS}
 
 if TYPE_CHECKING:
     STEPNC: Namespace
     P21: Namespace
+    ATTR: Namespace
+    SGA: Namespace
 
 
 def __getattr__(name: str) -> Any:
@@ -86,10 +102,18 @@ class Naming:
 
     def declaration(self, name: str) -> URIRef:
         """An entity, defined type, enumeration or select."""
-        return _uri(self.namespace + name.lower())
+        return _uri(self.declaration_iri(name))
+
+    def declaration_iri(self, name: str) -> str:
+        """:meth:`declaration` as a plain string (no rdflib: for code on a load's path)."""
+        return self.namespace + name.lower()
 
     def attribute(self, entity: str, attribute: str) -> URIRef:
-        return _uri(f"{self.namespace}{entity.lower()}.{attribute.lower()}")
+        return _uri(self.attribute_iri(entity, attribute))
+
+    def attribute_iri(self, entity: str, attribute: str) -> str:
+        """:meth:`attribute` as a plain string (no rdflib)."""
+        return f"{self.namespace}{entity.lower()}.{attribute.lower()}"
 
     def enum_item(self, enumeration: str, item: str) -> URIRef:
         return _uri(f"{self.namespace}{enumeration.lower()}.{item.lower()}")
@@ -126,6 +150,26 @@ def derived_graph_iri(graph_iri: str) -> str:
     load and removed with it, and the Part 21 writer never reads it.
     """
     return f"{instance_prefix(graph_iri)}derived"
+
+
+def generic_attribute(name: str) -> URIRef:
+    """The generic property of every attribute called ``name``, whatever entity declares it."""
+    return _uri(generic_attribute_iri(name))
+
+
+def generic_attribute_iri(name: str) -> str:
+    """:func:`generic_attribute` as a plain string (no rdflib)."""
+    return ATTRIBUTE_NS + name.lower()
+
+
+def analysis_term(name: str) -> URIRef:
+    """A term of the analysis vocabulary (``sga:RoughingOperation``, ``sga:next``, ...)."""
+    return _uri(ANALYSIS_NS + name)
+
+
+def execution_step_iri(graph_iri: str, index: int) -> str:
+    """The ``index``-th (1-based) step of a file's flattened execution order, in its derived layer."""
+    return f"{derived_graph_iri(graph_iri)}/step{index}"
 
 
 def section_iri(graph_iri: str, index: int) -> str:

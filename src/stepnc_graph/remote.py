@@ -41,6 +41,7 @@ from urllib.parse import urlsplit, urlunsplit
 
 import pyoxigraph as ox
 
+from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
 from stepnc_graph.store import STAGING, StoreError
 
 ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
@@ -55,6 +56,7 @@ STALE_STAGING_SECONDS = 24 * 3600
 _TRANSIENT = {429, 502, 503, 504}
 _RESULTS_JSON = "application/sparql-results+json"
 _NTRIPLES = "application/n-triples"
+_TURTLE = "text/turtle"
 
 
 class RemoteError(StoreError):
@@ -106,6 +108,10 @@ def _safe(url: str) -> str:
     parts = urlsplit(url)
     host = parts.hostname or ""
     return urlunsplit((parts.scheme, host + (f":{parts.port}" if parts.port else ""), parts.path, "", ""))
+
+
+def _value(term: Any) -> str:
+    return str(term.value if hasattr(term, "value") else term)
 
 
 def _batches(chunks: Iterable[str], size: int) -> Iterator[bytes]:
@@ -177,9 +183,9 @@ class RemoteStore:
         self._request("POST", self.endpoint.update_url, data=sparql.encode("utf-8"),
                       headers={"Content-Type": "application/sparql-update"})
 
-    def _post_graph(self, graph: str, body: bytes) -> None:
+    def _post_graph(self, graph: str, body: bytes, media_type: str = _NTRIPLES) -> None:
         self._request("POST", self.endpoint.store_url, params={"graph": graph}, data=body,
-                      headers={"Content-Type": _NTRIPLES})
+                      headers={"Content-Type": media_type})
 
     # -- writing --------------------------------------------------------------------
 
@@ -222,8 +228,12 @@ class RemoteStore:
         if stale:
             self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in stale))
 
-    def add_ntriples(self, graph: str, text: str) -> None:
-        self._post_graph(graph, text.encode("utf-8"))
+    def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
+        for body in _batches([text], BATCH_BYTES):
+            self._post_graph(graph, body)
+
+    def add_turtle(self, graph: str, text: str) -> None:
+        self._post_graph(graph, text.encode("utf-8"), _TURTLE)
 
     def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool:
         if not self.has_graph(graph):
@@ -233,14 +243,35 @@ class RemoteStore:
 
     # -- reading ----------------------------------------------------------------------
 
-    def query(self, sparql: str, use_default_graph_as_union: bool = False, **kwargs: Any) -> Any:
-        """SPARQL over the protocol; SELECT/ASK rows are pyoxigraph's, CONSTRUCT gives Triples."""
-        params = {"union-default-graph": ""} if use_default_graph_as_union else {}  # Oxigraph's extension
-        if kwargs:
-            raise StoreError(f"query options {sorted(kwargs)} are not available over the SPARQL protocol")
-        response = self._request("POST", self.endpoint.query_url, params=params, data=sparql.encode("utf-8"),
-                                 headers={"Content-Type": "application/sparql-query",
-                                          "Accept": f"{_RESULTS_JSON}, {_NTRIPLES};q=0.9"})
+    def query(self, sparql: str, **options: Any) -> Any:
+        """SPARQL over the protocol; SELECT/ASK rows are pyoxigraph's, CONSTRUCT gives Triples.
+
+        The options are pyoxigraph's, in standard terms: the dataset goes as
+        ``default-graph-uri`` / ``named-graph-uri`` (the union default graph is every
+        graph named as default), ``prefixes`` as PREFIX lines, and ``substitutions`` as
+        a VALUES clause at the end of the query, each term written by pyoxigraph (so a
+        value can never change the query's text).
+        """
+        unknown = set(options) - {"use_default_graph_as_union", "default_graph", "named_graphs", "prefixes",
+                                  "substitutions"}
+        if unknown:
+            raise StoreError(f"query options {sorted(unknown)} are not available over the SPARQL protocol")
+        prefixes: dict[str, str] | None = options.get("prefixes")
+        substitutions: dict[Any, Any] | None = options.get("substitutions")
+        default_graph: Sequence[Any] | None = options.get("default_graph")
+        named_graphs: Sequence[Any] | None = options.get("named_graphs")
+        if prefixes:
+            sparql = "".join(f"PREFIX {p}: <{iri}>\n" for p, iri in prefixes.items()) + sparql
+        if substitutions:
+            names = " ".join(str(v) for v in substitutions)
+            sparql += f"\nVALUES ({names}) {{ ({' '.join(str(t) for t in substitutions.values())}) }}"
+        if options.get("use_default_graph_as_union") and default_graph is None:
+            default_graph = [ox.NamedNode(g) for g in self.all_graphs()]
+        form: list[tuple[str, str]] = [("query", sparql)]
+        form += [("default-graph-uri", _value(g)) for g in default_graph or ()]
+        form += [("named-graph-uri", _value(g)) for g in named_graphs or ()]
+        response = self._request("POST", self.endpoint.query_url, data=form,
+                                 headers={"Accept": f"{_RESULTS_JSON}, {_NTRIPLES};q=0.9"})
         kind = response.headers.get("Content-Type", "").split(";")[0].strip()
         if kind == _NTRIPLES or kind.endswith("turtle"):
             fmt = ox.RdfFormat.N_TRIPLES if kind == _NTRIPLES else ox.RdfFormat.TURTLE
@@ -251,8 +282,15 @@ class RemoteStore:
         rows = self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }")  # the graph names, no scan
         return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode)]
 
-    def graphs(self) -> list[str]:
+    def all_graphs(self) -> list[str]:
+        """Every named graph but staging ones."""
         return sorted(g for g in self._all_graphs() if not g.startswith(STAGING))
+
+    def graphs(self) -> list[str]:
+        """The loaded files' graphs (and graphs `link` or users added): not the vocabulary graph or a
+        file's derived layer, as :meth:`GraphStore.graphs`."""
+        names = set(self.all_graphs()) - {VOCABULARY_GRAPH}
+        return sorted(names - {derived_graph_iri(g) for g in names})
 
     def has_graph(self, graph: str) -> bool:
         return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
@@ -264,7 +302,7 @@ class RemoteStore:
 
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
         """A graph's quads (Graph Store Protocol GET); every graph's for None."""
-        for name in [graph] if graph else self.graphs():
+        for name in [graph] if graph else self.all_graphs():
             assert name is not None
             response = self._request("GET", self.endpoint.store_url, params={"graph": name},
                                      headers={"Accept": _NTRIPLES}, stream=True)

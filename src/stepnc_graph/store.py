@@ -61,6 +61,8 @@ from typing import Any, Protocol
 
 import pyoxigraph as ox
 
+from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
+
 STORE_ENV = "STEPNC_GRAPH_STORE"
 DEFAULT_STORE = ".stepnc-graph"
 FORMAT_VERSION = 2
@@ -100,7 +102,11 @@ class Store(Protocol):
 
     def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool: ...
 
-    def add_ntriples(self, graph: str, text: str) -> None: ...
+    def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None: ...
+
+    def add_turtle(self, graph: str, text: str) -> None: ...
+
+    def update(self, sparql: str) -> None: ...
 
     def graphs(self) -> list[str]: ...
 
@@ -480,7 +486,8 @@ class GraphStore:
             if self.path is not None and not self.readonly:
                 self._store.flush()
             self._store = None
-            gc.collect()  # pyoxigraph releases the database (and its RocksDB lock) when collected
+            if self.path is not None:  # an in-memory store has no files or lock to release
+                gc.collect()  # pyoxigraph releases the database (and its RocksDB lock) when collected
 
     def close(self) -> None:
         """Release the database and the store's locks. Idempotent."""
@@ -680,12 +687,23 @@ class GraphStore:
             self._db.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; MOVE SILENT GRAPH <{tmp}> TO "
                                        f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
 
-    def add_ntriples(self, graph: str, text: str) -> None:
-        """Add a few N-Triples to ``graph`` (for use inside ``before_commit``)."""
-        if len(text) > DIRECT_CHARS:
+    def update(self, sparql: str) -> None:
+        """One SPARQL Update (one transaction); for writes inside a load's ``before_commit``."""
+        self._db.update(sparql)
+
+    def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
+        """Add N-Triples to ``graph`` (for use inside ``before_commit``): in one transaction, or
+        with ``bulk`` through Oxigraph's bulk loader (faster for many, not transactional: the load
+        around it is)."""
+        if bulk or len(text) > DIRECT_CHARS:
             self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
         else:
             self._db.load(text, ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
+
+    def add_turtle(self, graph: str, text: str) -> None:
+        """Add a Turtle document to ``graph`` (inside ``before_commit``, like :meth:`add_ntriples`):
+        parsed by Oxigraph in one call, with no Python object per triple."""
+        self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.TURTLE, to_graph=ox.NamedNode(graph))
 
     def optimize(self) -> None:
         """Compact the database (gives back the space of deleted quads), as a write."""
@@ -700,6 +718,15 @@ class GraphStore:
     # -- reading ------------------------------------------------------------------------
 
     def graphs(self) -> list[str]:
+        """The loaded files' graphs (and graphs users or `link` added): not staging graphs, the
+        vocabulary graph or a file's derived layer."""
+        names = {g.value for g in self._db.named_graphs()
+                 if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING)}
+        names.discard(VOCABULARY_GRAPH)
+        return sorted(names - {derived_graph_iri(g) for g in names})
+
+    def all_graphs(self) -> list[str]:
+        """Every named graph but staging ones: with the vocabulary and the derived layers."""
         return sorted(g.value for g in self._db.named_graphs()
                       if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING))
 

@@ -2,7 +2,7 @@
 
 One module per command group, each a thin layer over the Python API:
 :mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info),
-:mod:`.link` (PLM identifiers).
+:mod:`.link` (PLM identifiers), :mod:`.query` (query, queries), :mod:`.plan`, :mod:`.serve`.
 Shared pieces (consoles, exit codes, store options) are in :mod:`.common`.
 
 Exit codes, for scripts: 0 ok; 1 the data does not conform (diagnostics, a
@@ -20,7 +20,7 @@ from __future__ import annotations
 import click
 
 from stepnc_graph import __version__
-from stepnc_graph.cli import link, ontology, schema, serve, store, validate
+from stepnc_graph.cli import link, ontology, plan, query, schema, serve, store, validate
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -53,3 +53,6 @@ main.add_command(validate.validate_cmd)
 main.add_command(serve.serve_cmd)
 for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd, link.link_cmd):
     main.add_command(command)
+main.add_command(query.query_cmd)
+main.add_command(query.queries_cmd)
+main.add_command(plan.plan_cmd)

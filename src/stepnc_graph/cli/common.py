@@ -65,11 +65,18 @@ err = cast("Console", _LazyConsole(stderr=True))
 
 
 def show_warnings() -> None:
-    """Print Python warnings (a stale compiled model, say) as ``warning: ...`` lines on stderr."""
+    """Print stepnc-graph's own warnings (a stale compiled model, say) as ``warning: ...`` lines on
+    stderr; other libraries' warnings (deprecations) stay with Python's handler and its filters."""
+    from stepnc_graph.errors import StepncGraphWarning
+
+    previous = warnings.showwarning
 
     def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
              file: Any = None, line: str | None = None) -> None:
-        err.print(f"[yellow]warning:[/] {escape(str(message))}", markup=True, highlight=False)
+        if issubclass(category, StepncGraphWarning):
+            err.print(f"[yellow]warning:[/] {escape(str(message))}", markup=True, highlight=False)
+        else:
+            previous(message, category, filename, lineno, file, line)
 
     warnings.showwarning = show
 

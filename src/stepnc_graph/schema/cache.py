@@ -42,6 +42,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from stepnc_graph.errors import StepncGraphWarning
 from stepnc_graph.schema.catalog import Catalog, load_catalog_model
 from stepnc_graph.schema.model import (
     AggregateType,
@@ -75,7 +76,7 @@ FORMAT = 1
 JSON = Any
 
 
-class CompiledModelWarning(UserWarning):
+class CompiledModelWarning(StepncGraphWarning):
     """The compiled model is missing or stale; the model was built from the EXPRESS instead."""
 
 

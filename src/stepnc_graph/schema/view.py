@@ -163,16 +163,30 @@ class SchemaModel:
             self._ancestors[key] = tuple(out)
         return self._ancestors[key]
 
+    @cached_property
+    def _children(self) -> dict[str, list[str]]:
+        """supertype -> direct subtypes (plain dicts: a load asks for subtypes, and networkx would
+        cost it a tenth of a second of import)."""
+        out: dict[str, list[str]] = {}
+        for e in self.entities.values():
+            for st in e.supertypes:
+                out.setdefault(st, []).append(e.name)
+        return out
+
     def subtypes(self, name: str) -> tuple[str, ...]:
         """Direct subtypes, sorted."""
-        key = name.lower()
-        return tuple(sorted(self.hierarchy.successors(key))) if key in self.hierarchy else ()
+        return tuple(sorted(self._children.get(name.lower(), ())))
 
     def all_subtypes(self, name: str) -> tuple[str, ...]:
-        import networkx as nx
-
-        key = name.lower()
-        return tuple(sorted(nx.descendants(self.hierarchy, key))) if key in self.hierarchy else ()
+        """Every subtype, at any depth, sorted."""
+        found: set[str] = set()
+        stack = list(self._children.get(name.lower(), ()))
+        while stack:
+            current = stack.pop()
+            if current not in found:
+                found.add(current)
+                stack.extend(self._children.get(current, ()))
+        return tuple(sorted(found))
 
     def is_subtype(self, name: str, of: str) -> bool:
         """True when ``name`` is ``of`` or inherits from it."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import re
 import time
+import warnings
 from collections.abc import Iterable, Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -23,11 +24,13 @@ import pyoxigraph as ox
 
 from stepnc_graph.naming import P21_NS
 from stepnc_graph.part21.diagnostics import Diagnostic
-from stepnc_graph.validate.engine import Check, Compiler, Row, run
+from stepnc_graph.validate import compiled
+from stepnc_graph.validate.compiled import CompiledShapesWarning
+from stepnc_graph.validate.engine import Check, Row, run
 from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
 
-__all__ = ["Result", "ShapesError", "ValidationReport", "shape_files", "validate"]
+__all__ = ["CompiledShapes", "CompiledShapesWarning", "Result", "ShapesError", "ValidationReport", "shape_files", "validate"]
 
 SHAPES_NS = "https://w3id.org/stepnc-graph/shapes#"
 STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
@@ -49,20 +52,64 @@ def shape_files(shapes_dir: Path | None = None, process: bool = True) -> list[Pa
     return files
 
 
+class CompiledShapes:
+    """The checks of a set of shape files, and their shapes graph, parsed on first use (describing
+    results needs it; finding none does not)."""
+
+    def __init__(self, files: Sequence[Path], checks: tuple[Check, ...], graph: ShapesGraph | None = None) -> None:
+        self.files = tuple(files)
+        self.checks = checks
+        self._graph = graph
+
+    @property
+    def graph(self) -> ShapesGraph:
+        if self._graph is None:
+            graph = ShapesGraph()
+            for f in self.files:
+                graph.add_file(f)
+            self._graph = graph
+        return self._graph
+
+
 @lru_cache(maxsize=8)
-def _compiled(files: tuple[tuple[str, float], ...]) -> tuple[ShapesGraph, tuple[Check, ...]]:
-    graph = ShapesGraph()
-    for name, _mtime in files:
-        graph.add_file(Path(name))
-    return graph, tuple(Compiler(graph).checks())
+def _compiled(files: tuple[tuple[str, float], ...], directory: str) -> CompiledShapes:
+    paths = [Path(name) for name, _mtime in files]
+    try:
+        texts = [p.read_bytes() for p in paths]
+    except OSError as exc:
+        raise ShapesError(f"{exc.filename}: {exc.strerror or exc}") from None
+    names = compiled.relative_names(paths, Path(directory))
+    if names is not None:
+        shipped = Path(directory) / compiled.CACHE_FILE
+        try:
+            text = shipped.read_text(encoding="utf-8")
+            return CompiledShapes(paths, compiled.loads(text, compiled.digest(list(zip(names, texts, strict=True)))))
+        except (OSError, compiled.StaleChecks) as exc:
+            if paths == shape_files(Path(directory)):  # the shipped set itself: say why it is not used
+                reason = exc.strerror if isinstance(exc, OSError) else str(exc)
+                warnings.warn(f"{shipped} is not used: {reason}. Compiling the shapes instead (about 0.2 s); "
+                              f"`stepnc-graph ontology build` refreshes the file.", CompiledShapesWarning,
+                              stacklevel=2)
+    try:
+        decoded = [(str(p), t.decode("utf-8")) for p, t in zip(paths, texts, strict=True)]
+    except UnicodeDecodeError as exc:
+        raise ShapesError(f"shapes are not UTF-8: {exc}") from None
+    graph, checks = compiled.compile_texts(decoded)
+    return CompiledShapes(paths, tuple(checks), graph)
 
 
-def compile_shapes(files: Sequence[Path]) -> tuple[ShapesGraph, tuple[Check, ...]]:
-    """Parse and compile shapes files (cached per process while the files are unchanged)."""
+def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> CompiledShapes:
+    """The checks of shapes files: the shipped compiled ones when ``files`` are the files they were
+    compiled from (in ``directory``, default the shipped shapes), else compiled here; cached per
+    process while the files are unchanged."""
     for f in files:
         if not f.is_file():
             raise ShapesError(f"{f}: no such shapes file")
-    return _compiled(tuple((str(f), f.stat().st_mtime) for f in files))
+    if directory is None:
+        from stepnc_graph.resources import shapes_dir
+
+        directory = shapes_dir()
+    return _compiled(tuple((str(f), f.stat().st_mtime) for f in files), str(directory))
 
 
 def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shapes: Sequence[str | Path] = (),
@@ -80,7 +127,8 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
 
     started = time.perf_counter()
     files = shape_files(shapes_dir, process) + [Path(p) for p in extra_shapes]
-    shapes, checks = compile_shapes(files)
+    compiled_shapes = compile_shapes(files, shapes_dir)
+    shapes, checks = compiled_shapes, compiled_shapes.checks
     level = severity.capitalize()
     if level not in SEVERITIES:
         raise ValueError(f"severity must be one of {', '.join(s.lower() for s in SEVERITIES)}")
@@ -108,7 +156,7 @@ def program_graphs(store: object) -> list[str]:
     return sorted(str(r[0].value) for r in rows)
 
 
-def _validate_store(store: object, graphs: Sequence[str] | None, shapes: ShapesGraph, checks: list[Check],
+def _validate_store(store: object, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
                     diagnostics: dict[str, list[Diagnostic]]) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
@@ -158,11 +206,15 @@ def _local(term: str) -> str:
 class _Describer:
     """Turns raw rows into results: Part 21 #id, line and entity of focus nodes and values, messages."""
 
-    def __init__(self, store: ox.Store, graph: str, shapes: ShapesGraph) -> None:
+    def __init__(self, store: ox.Store, graph: str, shapes: CompiledShapes) -> None:
         self.store = store
         self.graph = graph
-        self.g = shapes
+        self.shapes = shapes
         self.info: dict[str, tuple[int | None, int | None, str | None]] = {}
+
+    @property
+    def g(self) -> ShapesGraph:
+        return self.shapes.graph
 
     def lookup(self, terms: Iterable[str]) -> None:
         """#id, line and entity name of instance IRIs, in one query."""

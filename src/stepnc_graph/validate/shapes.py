@@ -43,16 +43,29 @@ class ShapesGraph:
 
     def add_file(self, path: Path) -> None:
         """Add a Turtle file (blank node labels kept apart per file)."""
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, ValueError) as exc:
+            raise ShapesError(f"{path}: {exc}") from None
+        self.add_text(text, str(path))
+
+    def add_text(self, text: str, name: str) -> None:
+        """Add a Turtle document; ``name`` (its file) is for error messages."""
         self._blank_prefix += 1
         try:
-            triples = list(ox.parse(path=str(path), format=ox.RdfFormat.TURTLE))
-        except (SyntaxError, OSError, ValueError) as exc:
-            raise ShapesError(f"{path}: {exc}") from None
+            triples = list(ox.parse(text.encode("utf-8"), format=ox.RdfFormat.TURTLE))
+        except (SyntaxError, ValueError) as exc:
+            raise ShapesError(f"{name}: {exc}") from None
         self.add(triples, f"f{self._blank_prefix}")
 
     def add(self, triples: Iterable[ox.Triple | ox.Quad], tag: str) -> None:
+        """Index triples. Blank nodes are renamed ``_:{tag}_b{n}`` in order of first appearance: the
+        parser's own labels are random, and compiled checks (:mod:`.compiled`) name blank shapes that
+        a graph parsed in another process must name the same way."""
+        blanks: dict[str, str] = {}
         for t in triples:
-            s, p, o = self.term(t.subject, tag), self.term(t.predicate, tag), self.term(t.object, tag)
+            s, p, o = (self.term(t.subject, tag, blanks), self.term(t.predicate, tag, blanks),
+                       self.term(t.object, tag, blanks))
             if (s, p) not in self._sp:
                 self._preds[s].append(p)
             self._sp[(s, p)].append(o)
@@ -63,9 +76,12 @@ class ShapesGraph:
                 self.instances[o].add(s)
 
     @staticmethod
-    def term(node: object, tag: str) -> str:
+    def term(node: object, tag: str, blanks: dict[str, str]) -> str:
         if isinstance(node, ox.BlankNode):
-            return f"_:{tag}_{node.value}"
+            label = blanks.get(node.value)
+            if label is None:
+                label = blanks[node.value] = f"_:{tag}_b{len(blanks)}"
+            return label
         return str(node)
 
     # -- reading --------------------------------------------------------------------------------

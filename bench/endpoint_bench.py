@@ -1,0 +1,184 @@
+"""Endpoint benchmark: a program loaded and the query library run over a SPARQL endpoint, next to the
+embedded store, in the same run.
+
+    pip install -e '.[bench,test]' && python bench/endpoint_bench.py              # 100k instances
+    python bench/endpoint_bench.py --size 10000 --repeat 5
+
+One program written by bench/generate.py; the endpoint is Oxigraph's own server (``oxigraph serve``
+from the ``oxigraph`` PyPI package, on a loopback port, persistent in a temporary directory):
+
+* **load**: ``stepnc-graph load --store DIR`` (embedded) and ``stepnc-graph load --endpoint URL``
+  (staging graphs uploaded over the Graph Store Protocol, then swapped in by one SPARQL Update), each
+  as a user runs it, ``--load-repeat`` times alternating: median wall seconds, the CLI's CPU seconds,
+  and for the endpoint the server's CPU seconds too (read from /proc for its pid).
+* **queries**: every library query through the Python API (:func:`stepnc_graph.query.execute`,
+  results written as SPARQL 1.1 JSON) on the embedded store and on the endpoint: one warm-up, then
+  ``--repeat`` runs, medians of wall milliseconds and the endpoint's server CPU milliseconds; the
+  ratio endpoint / embedded; row counts compared (they must agree).
+
+The machine is shared: read CPU seconds beside wall seconds, and the ratios (same run, same program).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from generate import write  # noqa: E402
+
+TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def cli() -> list[str]:
+    script = Path(sys.executable).parent / "stepnc-graph"
+    return [str(script)] if script.exists() else [sys.executable, "-m", "stepnc_graph.cli"]
+
+
+def process_cpu(pid: int) -> float:
+    """User + system CPU seconds of a running process (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICKS
+
+
+class Server:
+    """``oxigraph serve`` on a free loopback port, persistent in ``location``."""
+
+    def __init__(self, location: Path) -> None:
+        binary = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
+        if not Path(binary).exists():
+            raise SystemExit("the Oxigraph server is not installed: pip install oxigraph (a test extra)")
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            self.port = int(s.getsockname()[1])
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.process = subprocess.Popen([binary, "serve", "--location", str(location), "--bind",
+                                         f"127.0.0.1:{self.port}"], stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL)
+        import requests
+
+        for _ in range(200):
+            try:
+                if requests.get(f"{self.url}/query", params={"query": "ASK {}"}, timeout=1).ok:
+                    return
+            except requests.ConnectionError:
+                time.sleep(0.1)
+        self.stop()
+        raise SystemExit("the Oxigraph server did not start")
+
+    def cpu(self) -> float:
+        return process_cpu(self.process.pid)
+
+    def stop(self) -> None:
+        self.process.terminate()
+        self.process.wait(timeout=60)
+
+
+def timed_cli(args: list[str], server: Server | None = None) -> dict[str, float]:
+    """Run the CLI once: wall seconds, its CPU seconds, and the server's CPU seconds meanwhile."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    server_before = server.cpu() if server else 0.0
+    started = time.perf_counter()
+    done = subprocess.run([*cli(), *args], capture_output=True, text=True)
+    wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(args)} failed ({done.returncode}):\n{done.stderr}")
+    return {"wall": wall, "cpu": after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime,
+            "server_cpu": (server.cpu() - server_before) if server else 0.0}
+
+
+def measure_queries(store: Any, repeat: int, server: Server | None = None) -> dict[str, dict[str, float]]:
+    from stepnc_graph.query import execute, library
+
+    out = {}
+    for q in library():
+        rows = len(json.loads(execute(store, q, {}).serialize("json"))["results"]["bindings"])  # warm-up
+        walls, cpus = [], []
+        for _ in range(repeat):
+            server_before = server.cpu() if server else 0.0
+            wall = time.perf_counter()
+            execute(store, q, {}).serialize("json")
+            walls.append(time.perf_counter() - wall)
+            cpus.append((server.cpu() - server_before) if server else 0.0)
+        out[q.name] = {"wall": statistics.median(walls), "server_cpu": statistics.median(cpus), "rows": rows}
+    return out
+
+
+def med(runs: list[dict[str, float]], key: str) -> float:
+    return statistics.median(r[key] for r in runs)
+
+
+def run(size: int, repeat: int, load_repeat: int) -> None:
+    from stepnc_graph.remote import open_remote
+    from stepnc_graph.store import GraphStore
+
+    work = Path(tempfile.mkdtemp(prefix="stepnc-endpoint-"))
+    try:
+        program = work / f"program-{size}.stp"
+        write(size, program)
+        server = Server(work / "server")
+        try:
+            embedded: list[dict[str, float]] = []
+            remote: list[dict[str, float]] = []
+            for i in range(load_repeat):
+                store_dir = work / f"store-{i}"
+                embedded.append(timed_cli(["load", "--store", str(store_dir), str(program)]))
+                remote.append(timed_cli(["load", "--endpoint", server.url, "--replace", str(program)], server))
+                if i + 1 < load_repeat:
+                    shutil.rmtree(store_dir)
+            print(f"{size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of {load_repeat} load(s), "
+                  f"{os.cpu_count()} CPUs, seconds")
+            print(f"{'load':<10} {'wall':>8} {'CLI CPU':>8} {'server CPU':>10} {'inst/s':>8}")
+            for label, runs in (("embedded", embedded), ("endpoint", remote)):
+                print(f"{label:<10} {med(runs, 'wall'):8.1f} {med(runs, 'cpu'):8.1f} {med(runs, 'server_cpu'):10.1f} "
+                      f"{size / med(runs, 'wall'):8,.0f}")
+            print(f"endpoint / embedded wall: {med(remote, 'wall') / med(embedded, 'wall'):.2f}x\n")
+            with GraphStore(work / f"store-{load_repeat - 1}", readonly=True) as store:
+                local = measure_queries(store, repeat)
+            far = measure_queries(open_remote(server.url), repeat, server)
+        finally:
+            server.stop()
+        report(local, far, repeat)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def report(local: dict[str, dict[str, float]], far: dict[str, dict[str, float]], repeat: int) -> None:
+    print(f"queries: medians of {repeat} runs after a warm-up, milliseconds (results written as SPARQL JSON)")
+    print(f"{'query':<30} {'rows':>6} {'embedded':>9} {'endpoint':>9} {'server CPU':>10} {'ratio':>6}")
+    ratios = []
+    for name in local:
+        a, b = local[name], far[name]
+        ratio = b["wall"] / a["wall"] if a["wall"] else float("inf")
+        ratios.append(ratio)
+        same = "" if a["rows"] == b["rows"] else f"  ROWS DIFFER ({b['rows']})"
+        print(f"{name:<30} {a['rows']:>6} {a['wall'] * 1e3:9.1f} {b['wall'] * 1e3:9.1f} "
+              f"{b['server_cpu'] * 1e3:10.0f} {ratio:5.2f}x{same}")
+    print(f"median ratio endpoint / embedded: {statistics.median(ratios):.2f}x")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--size", type=int, default=100_000, help="instances of the generated program")
+    parser.add_argument("--repeat", type=int, default=5, help="runs of each query (median)")
+    parser.add_argument("--load-repeat", type=int, default=1, help="loads of each kind (median)")
+    args = parser.parse_args(argv)
+    run(args.size, args.repeat, args.load_repeat)
+
+
+if __name__ == "__main__":
+    main()

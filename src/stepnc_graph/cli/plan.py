@@ -1,0 +1,108 @@
+"""`stepnc-graph plan`: the workplan of a program as a summary, GraphML and a picture."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from stepnc_graph.cli.common import (
+    EXIT_BAD_INPUT,
+    EXIT_OK,
+    RemoteOptions,
+    err,
+    escape,
+    out,
+    reports_errors,
+    with_endpoint,
+    with_store,
+)
+from stepnc_graph.cli.query import open_programs
+
+
+def _fail(message: str) -> None:
+    err.print(f"[bold red]error:[/] {escape(message)}", markup=True, highlight=False)
+    sys.exit(EXIT_BAD_INPUT)
+
+
+@click.command("plan")
+@click.argument("program", required=False, type=click.Path(dir_okay=False, path_type=Path))
+@with_store
+@with_endpoint
+@click.option("--graph", default=None, help="The loaded program to show (see `stepnc-graph info`); needed when "
+                                            "the store holds several.")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--graphml", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also write the plan graph as GraphML (for yEd, Gephi, Cytoscape).")
+@click.option("--svg", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also write a picture: setups as lanes, workingsteps in order coloured by tool, tool changes "
+                   "marked, rough/finish pairs joined.")
+@click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="The picture as PNG (needs: pip install 'stepnc-graph[png]').")
+@click.option("--lenient", is_flag=True, help="Load PROGRAM leniently.")
+@reports_errors
+def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote: RemoteOptions, graph: str | None,
+             fmt: str, graphml: Path | None, svg: Path | None, png: Path | None, lenient: bool) -> None:
+    """The workplan of PROGRAM (a Part 21 file) or of a program in the store.
+
+    Prints the execution order by setup, the tool changes, precedence errors
+    (finishing before roughing on a feature), tools shared across setups and
+    the critical (most used) tool. Exit 2 for bad input.
+    """
+    from stepnc_graph.plan import PlanError, build_plan
+    from stepnc_graph.plan import png as to_png
+
+    if program is not None and not program.is_file():
+        _fail(f"{program}: no such program file")
+    with open_programs([program] if program is not None else [], store_path, memory, remote, lenient) as store:
+        try:
+            plan = build_plan(store, graph)
+        except PlanError as exc:
+            _fail(str(exc))
+    picture = plan.svg() if (svg or png) else ""
+    try:
+        if graphml:
+            graphml.write_text(plan.graphml(), encoding="utf-8")
+        if svg:
+            svg.write_text(picture, encoding="utf-8")
+        if png:
+            png.write_bytes(to_png(picture))
+    except ImportError as exc:
+        _fail(str(exc))
+    except OSError as exc:
+        _fail(f"cannot write: {exc}")
+    if fmt == "json":
+        click.echo(plan.to_json())
+    else:
+        _print_summary(plan)
+    for path in (graphml, svg, png):
+        if path:
+            err.print(f"wrote {path}")
+    sys.exit(EXIT_OK)
+
+
+def _print_summary(plan: object) -> None:
+    from stepnc_graph.plan import Plan
+
+    assert isinstance(plan, Plan)
+    changes = plan.tool_changes()
+    out.print(f"[bold]{plan.program}[/]: {len(plan.steps)} workingsteps, {len(changes)} tool changes",
+              markup=True, highlight=False)
+    changed = {c.order for c in changes}
+    for setup, steps in plan.workingsteps_per_setup().items():
+        out.print(f"  [bold]{setup or '(no setup)'}[/]", markup=True, highlight=False)
+        for s in steps:
+            mark = "T" if s.order in changed else " "
+            tool = f"{s.tool.label} {s.tool.ref}" if s.tool else "-"
+            out.print(f"   {mark} {s.order:>4}. {s.workingstep.label} {s.workingstep.ref}  [{s.kind or '-'}]  "
+                      f"tool {tool}", markup=False, highlight=False)
+    for p in plan.precedence_violations():
+        out.print(f"  [red]precedence:[/] {p.feature.label} {p.feature.ref}: finishing step {p.finish} runs before "
+                  f"roughing step {p.rough}", markup=True, highlight=False)
+    for tool, setups in plan.shared_tools().items():
+        out.print(f"  shared tool {tool}: {', '.join(setups)}", highlight=False)
+    critical = plan.critical_tool()
+    if critical:
+        out.print(f"  critical tool: {critical[0].label} {critical[0].ref} ({critical[1]} workingsteps)",
+                  highlight=False)

@@ -1,0 +1,516 @@
+"""SPARQL over the store: the query library, parameters bound as RDF terms, results in standard formats.
+
+A library query is a ``queries/<name>.rq`` file (shipped in the wheel) that
+starts with a header of ``#`` comment lines::
+
+    # title: Workingsteps by tool type
+    # description: Workingsteps whose tool body is of a class (subclasses count),
+    #   with operation, feature, tool and setup.
+    # param: tool_type (class) = grooving_tool -- the tool body class
+    # example: stepnc-graph query workingsteps-by-tool-type --param tool_type=knurling_tool
+
+A parameter is a variable the query SELECTs (Oxigraph substitutes values only
+for projected variables, SPARQL 1.1 SEP-0007 style). Its value is converted to
+an RDF term of the declared type -- ``class`` (a vocabulary class, checked
+against the store's vocabulary graph), ``iri``, ``string``, ``integer``,
+``decimal``, ``boolean`` -- and handed to Oxigraph as a term: user text is
+never spliced into the query string.
+
+Queries run over every loaded program: the default graph is the union of all
+graphs (files, their derived layers, the vocabulary), and ``GRAPH ?program``
+reaches the files' own graphs (``?program`` names the source). ``graph=``
+restricts both to one file. Queries are SPARQL *queries* (pyoxigraph's
+``Store.query`` cannot run an update), so they are read-only by construction.
+
+Results: :class:`QueryResult`; ``csv``, ``tsv`` and ``json`` are the SPARQL
+1.1 results formats, written by Oxigraph's own serialisers.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from decimal import Decimal, InvalidOperation
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pyoxigraph as ox
+
+from stepnc_graph.naming import (
+    ANALYSIS_NS,
+    ATTRIBUTE_NS,
+    DATA_BASE,
+    P21_NS,
+    STEPNC_NS,
+    VOCABULARY_GRAPH,
+    derived_graph_iri,
+)
+from stepnc_graph.resources import queries_dir
+from stepnc_graph.vocabulary import vocabulary_for_queries, vocabulary_status
+
+if TYPE_CHECKING:
+    from stepnc_graph.store import GraphStore
+
+XSD = "http://www.w3.org/2001/XMLSchema#"
+#: Prefixes every query may use without declaring them (library queries declare theirs anyway).
+PREFIXES: dict[str, str] = {
+    "stepnc": STEPNC_NS,
+    "attr": ATTRIBUTE_NS,
+    "sga": ANALYSIS_NS,
+    "p21": P21_NS,
+    "rdf": "http://www.w3.org/1999/02/22-rdf-syntax-ns#",
+    "rdfs": "http://www.w3.org/2000/01/rdf-schema#",
+    "owl": "http://www.w3.org/2002/07/owl#",
+    "xsd": XSD,
+    "skos": "http://www.w3.org/2004/02/skos/core#",
+    "dcterms": "http://purl.org/dc/terms/",
+    "prov": "http://www.w3.org/ns/prov#",
+}
+#: Prefixes used to shorten IRIs in the ``table`` and ``md`` formats only.
+DISPLAY_PREFIXES = {**PREFIXES, "data": DATA_BASE}
+FORMATS = ("table", "csv", "tsv", "json", "md")
+PARAM_TYPES = ("class", "iri", "string", "integer", "decimal", "boolean")
+NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
+_PARAM = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\((?P<type>[a-z]+)\)\s*"
+                    r"(?:=\s*(?P<default>.*?))?\s*(?:--\s*(?P<doc>.*))?$")
+_POSITION = re.compile(r"error at (\d+):(\d+): (.*)", re.S)
+
+
+class QueryError(ValueError):
+    """A query that cannot run as asked: syntax error, bad parameter, unknown name or graph.
+
+    ``source`` is the query file (or ``-e``), ``line``/``column`` 1-based
+    positions in it when known, ``parameter`` the parameter at fault.
+    """
+
+    def __init__(self, message: str, source: str = "", line: int | None = None, column: int | None = None,
+                 parameter: str | None = None, excerpt: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.source = source
+        self.line = line
+        self.column = column
+        self.parameter = parameter
+        self.excerpt = excerpt
+
+    def __str__(self) -> str:
+        where = self.source
+        if self.line is not None:
+            where += f":{self.line}" + (f":{self.column}" if self.column is not None else "")
+        text = f"{where}: {self.message}" if where else self.message
+        if self.excerpt is not None and self.column is not None:
+            text += f"\n  {self.excerpt}\n  {' ' * (self.column - 1)}^"
+        return text
+
+    def asdict(self) -> dict[str, Any]:
+        return {"source": self.source, "line": self.line, "column": self.column, "parameter": self.parameter,
+                "message": self.message}
+
+
+@dataclass(frozen=True)
+class Param:
+    """A declared parameter: ``?name`` bound to a term of ``type`` (default used when not given)."""
+
+    name: str
+    type: str
+    default: str | None
+    doc: str
+    line: int  # where the header declares it
+
+    def describe(self) -> str:
+        default = f" = {self.default}" if self.default is not None else " (required)"
+        return f"{self.name} ({self.type}){default}" + (f" -- {self.doc}" if self.doc else "")
+
+
+@dataclass(frozen=True)
+class Query:
+    """A query with its header: a library query, a ``.rq`` file or inline text (``source`` says which)."""
+
+    name: str
+    text: str
+    source: str
+    title: str = ""
+    description: str = ""
+    params: tuple[Param, ...] = ()
+    examples: tuple[str, ...] = ()
+
+    def param(self, name: str) -> Param | None:
+        return next((p for p in self.params if p.name == name), None)
+
+
+def parse_header(text: str, source: str) -> dict[str, Any]:
+    """The ``# key: value`` lines at the top of a query (continuations are indented ``#`` lines)."""
+    fields: dict[str, list[tuple[int, str]]] = {}
+    last: str | None = None
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            break
+        body = stripped[1:]
+        match = re.match(r"^\s?([a-z]+):\s*(.*)$", body)
+        if match and not body.startswith("   "):
+            last = match.group(1)
+            fields.setdefault(last, []).append((number, match.group(2).strip()))
+        elif last is not None and body.strip():
+            n, previous = fields[last][-1]
+            fields[last][-1] = (n, f"{previous} {body.strip()}")
+    params = []
+    for number, value in fields.get("param", []):
+        m = _PARAM.match(value)
+        if m is None or m.group("type") not in PARAM_TYPES:
+            raise QueryError(f"malformed parameter declaration {value!r}: expected 'name (type) = default -- "
+                             f"description' with type one of {', '.join(PARAM_TYPES)}", source, number)
+        params.append(Param(m.group("name"), m.group("type"), m.group("default"), (m.group("doc") or "").strip(),
+                            number))
+    return {"title": " ".join(v for _, v in fields.get("title", [])),
+            "description": " ".join(v for _, v in fields.get("description", [])),
+            "params": tuple(params), "examples": tuple(v for _, v in fields.get("example", []))}
+
+
+def read_query(path: Path, name: str | None = None) -> Query:
+    """A query file with its header."""
+    text = path.read_text(encoding="utf-8")
+    return Query(name or path.stem, text, str(path), **parse_header(text, str(path)))
+
+
+def library(directory: Path | None = None) -> list[Query]:
+    """Every query of the library (``queries/*.rq``), by name."""
+    return [read_query(p) for p in sorted((directory or queries_dir()).glob("*.rq"))]
+
+
+def resolve(name_or_text: str, directory: Path | None = None) -> Query:
+    """A library query by name, a ``.rq`` file by path, or SPARQL text."""
+    folder = directory or queries_dir()
+    if NAME.match(name_or_text):
+        path = folder / f"{name_or_text}.rq"
+        if path.is_file():
+            return read_query(path)
+        names = [p.stem for p in sorted(folder.glob("*.rq"))]
+        close = difflib.get_close_matches(name_or_text, names, n=3)
+        raise QueryError(f"no library query {name_or_text!r}"
+                         + (f"; did you mean {', '.join(close)}?" if close else "; `stepnc-graph queries` lists them"))
+    if name_or_text.endswith(".rq") and "\n" not in name_or_text:
+        path = Path(name_or_text)
+        if not path.is_file():
+            raise QueryError(f"no query file {name_or_text}")
+        return read_query(path)
+    return Query("-e", name_or_text, "-e", **parse_header(name_or_text, "-e"))
+
+
+# -- parameters ------------------------------------------------------------------------------------
+
+
+def _expand(value: str) -> str:
+    """``prefix:local`` or ``<iri>`` or a bare IRI, as an IRI string."""
+    if value.startswith("<") and value.endswith(">"):
+        return value[1:-1]
+    prefix, sep, local = value.partition(":")
+    if sep and prefix in PREFIXES:
+        return PREFIXES[prefix] + local
+    return value
+
+
+def _class_term(store: GraphStore, value: str) -> ox.NamedNode:
+    iri = _expand(value) if ":" in value else STEPNC_NS + value.lower()
+    node = ox.NamedNode(iri)
+    known = store.query(f"SELECT ?c WHERE {{ GRAPH <{VOCABULARY_GRAPH}> {{ ?c a <http://www.w3.org/2002/07/owl#Class> "
+                        "FILTER(isIRI(?c)) } }")
+    classes = {row["c"].value for row in known}
+    if iri in classes:
+        return node
+    if not classes:
+        raise ValueError("the store has no vocabulary graph to check classes against (load a file first)")
+    names = sorted(c.removeprefix(STEPNC_NS) for c in classes if c.startswith(STEPNC_NS))
+    close = difflib.get_close_matches(value.split(":")[-1].lower(), names, n=3)
+    raise ValueError(f"no class {value!r} in the vocabulary" + (f"; did you mean {', '.join(close)}?" if close else ""))
+
+
+def to_term(store: GraphStore, type_: str, value: str) -> ox.NamedNode | ox.Literal:
+    """``value`` (command-line text) as an RDF term of ``type_``; ValueError says what was expected."""
+    if type_ == "class":
+        return _class_term(store, value)
+    if type_ == "iri":
+        return ox.NamedNode(_expand(value))
+    if type_ == "integer":
+        if not re.fullmatch(r"[+-]?[0-9]+", value.strip()):
+            raise ValueError(f"expected an integer, got {value!r}")
+        return ox.Literal(value.strip(), datatype=ox.NamedNode(XSD + "integer"))
+    if type_ == "decimal":
+        try:
+            Decimal(value.strip())
+        except InvalidOperation:
+            raise ValueError(f"expected a number, got {value!r}") from None
+        return ox.Literal(value.strip(), datatype=ox.NamedNode(XSD + "decimal"))
+    if type_ == "boolean":
+        word = value.strip().lower()
+        if word not in ("true", "false", "1", "0", "yes", "no"):
+            raise ValueError(f"expected true or false, got {value!r}")
+        return ox.Literal(word in ("true", "1", "yes"))
+    return ox.Literal(value)
+
+
+def _guess(value: str) -> str:
+    """The type of an undeclared parameter's value: IRI, integer, decimal, boolean or string."""
+    if value.startswith("<") or (":" in value and value.partition(":")[0] in PREFIXES):
+        return "iri"
+    if re.fullmatch(r"[+-]?[0-9]+", value):
+        return "integer"
+    if re.fullmatch(r"[+-]?([0-9]+\.[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?", value):
+        return "decimal"
+    if value in ("true", "false"):
+        return "boolean"
+    return "string"
+
+
+def bind(store: GraphStore, query: Query, given: Mapping[str, str]) -> dict[ox.Variable, ox.NamedNode | ox.Literal]:
+    """The terms to substitute: declared parameters (given or default), and undeclared ones by their look."""
+    out: dict[ox.Variable, ox.NamedNode | ox.Literal] = {}
+    for name in given:
+        if query.params and query.param(name) is None:
+            raise QueryError(f"unknown parameter {name!r}; {query.name} takes "
+                             f"{', '.join(p.name for p in query.params)}", query.source, parameter=name)
+    for p in query.params:
+        value = given[p.name] if p.name in given else p.default
+        if value is None:
+            raise QueryError(f"parameter {p.name} is required ({p.describe()})", query.source, p.line,
+                             parameter=p.name)
+        try:
+            out[ox.Variable(p.name)] = to_term(store, p.type, value)
+        except ValueError as exc:
+            raise QueryError(f"--param {p.name}={value}: {exc}", query.source, p.line, parameter=p.name) from None
+    for name, value in given.items():
+        if query.param(name) is None:
+            try:
+                out[ox.Variable(name)] = to_term(store, _guess(value), value)
+            except ValueError as exc:
+                raise QueryError(f"--param {name}={value}: {exc}", query.source, parameter=name) from None
+    return out
+
+
+# -- results ---------------------------------------------------------------------------------------
+
+
+Term = ox.NamedNode | ox.BlankNode | ox.Literal | ox.Triple
+
+
+def python_value(term: Term | None) -> Any:
+    """A term as a plain Python value: numbers and booleans typed, IRIs and strings as text."""
+    if term is None:
+        return None
+    if isinstance(term, ox.Literal):
+        dt = term.datatype.value.removeprefix(XSD)
+        if dt in ("integer", "int", "long", "short", "nonNegativeInteger", "positiveInteger"):
+            return int(term.value)
+        if dt in ("double", "float", "decimal"):
+            return float(term.value)
+        if dt == "boolean":
+            return term.value in ("true", "1")
+        return term.value
+    if isinstance(term, ox.BlankNode):
+        return f"_:{term.value}"
+    return str(term.value) if isinstance(term, ox.NamedNode) else str(term)
+
+
+def display(term: Term | None) -> str:
+    """A term for reading: prefixed IRIs, literal values without their datatype."""
+    if term is None:
+        return ""
+    if isinstance(term, ox.NamedNode):
+        for prefix, ns in DISPLAY_PREFIXES.items():
+            if term.value.startswith(ns) and len(term.value) > len(ns):
+                return f"{prefix}:{term.value[len(ns):]}"
+        return f"<{term.value}>"
+    if isinstance(term, ox.Literal):
+        return term.value
+    return str(term)
+
+
+@dataclass
+class QueryResult:
+    """What a query returned: SELECT rows, an ASK boolean or CONSTRUCT/DESCRIBE triples.
+
+    Iterating gives one dict per row (plain Python values, see
+    :func:`python_value`); :meth:`to_dataframe` gives a pandas DataFrame;
+    :meth:`serialize` gives the standard results formats.
+    """
+
+    kind: str  # "select", "ask" or "graph"
+    variables: list[str] = field(default_factory=list)
+    terms: list[tuple[Term | None, ...]] = field(default_factory=list)
+    boolean: bool | None = None
+    triples: list[ox.Triple] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    _json: bytes = b""
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        for row in self.terms:
+            yield {v: python_value(t) for v, t in zip(self.variables, row, strict=True)}
+
+    def __len__(self) -> int:
+        return len(self.terms) if self.kind == "select" else len(self.triples)
+
+    @property
+    def rows(self) -> list[dict[str, Any]]:
+        return list(self)
+
+    def column(self, name: str) -> list[Any]:
+        i = self.variables.index(name)
+        return [python_value(row[i]) for row in self.terms]
+
+    def to_dataframe(self) -> Any:
+        """The rows as a pandas DataFrame (needs pandas; ``pip install pandas``)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("to_dataframe() needs pandas: pip install pandas") from None
+        return pd.DataFrame(self.rows, columns=self.variables)
+
+    def _repr_html_(self) -> str:  # Jupyter
+        from html import escape
+
+        if self.kind != "select":
+            return f"<pre>{escape(self.serialize('table').decode())}</pre>"
+        head = "".join(f"<th>{escape(v)}</th>" for v in self.variables)
+        body = "".join("<tr>" + "".join(f"<td>{escape(display(t))}</td>" for t in row) + "</tr>"
+                       for row in self.terms)
+        return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+    def display_rows(self) -> list[list[str]]:
+        return [[display(t) for t in row] for row in self.terms]
+
+    def serialize(self, fmt: str) -> bytes:
+        """``csv``/``tsv``/``json``: the SPARQL 1.1 results formats (Oxigraph's writers); ``md``: a
+        Markdown table; ``table``: aligned text. CONSTRUCT results are N-Triples in every format."""
+        if fmt not in FORMATS:
+            raise QueryError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
+        if self.kind == "graph":
+            return ox.serialize(self.triples, format=ox.RdfFormat.N_TRIPLES) or b""
+        if fmt in ("csv", "tsv", "json"):
+            target = {"csv": ox.QueryResultsFormat.CSV, "tsv": ox.QueryResultsFormat.TSV,
+                      "json": ox.QueryResultsFormat.JSON}[fmt]
+            if fmt == "json":
+                return self._json
+            parsed = ox.parse_query_results(self._json, format=ox.QueryResultsFormat.JSON)
+            return parsed.serialize(format=target) or b""
+        if self.kind == "ask":
+            return f"{str(self.boolean).lower()}\n".encode()
+        rows = self.display_rows()
+        if fmt == "md":
+            def cell(text: str) -> str:
+                return text.replace("|", "\\|").replace("\n", " ")
+            lines = ["| " + " | ".join(self.variables) + " |", "|" + "---|" * len(self.variables)]
+            lines += ["| " + " | ".join(cell(c) for c in row) + " |" for row in rows]
+            return ("\n".join(lines) + "\n").encode()
+        widths = [max([len(v)] + [len(r[i]) for r in rows]) for i, v in enumerate(self.variables)]
+        lines = ["  ".join(v.ljust(w) for v, w in zip(self.variables, widths, strict=True)).rstrip()]
+        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
+        return ("\n".join(lines) + "\n").encode()
+
+
+# -- running ---------------------------------------------------------------------------------------
+
+
+def _syntax_error(exc: SyntaxError, query: Query) -> QueryError:
+    """A pyoxigraph syntax error as a positioned QueryError (line, column, source line and caret)."""
+    text = str(exc)
+    match = _POSITION.match(text)
+    if match is None:
+        return QueryError(f"SPARQL syntax error: {text}", query.source)
+    line, column, message = int(match.group(1)), int(match.group(2)), _readable(match.group(3))
+    lines = query.text.splitlines()
+    excerpt = lines[line - 1] if 0 < line <= len(lines) else None
+    return QueryError(f"SPARQL syntax error: {message}", query.source, line, column, excerpt=excerpt)
+
+
+def _readable(message: str) -> str:
+    """Oxigraph's "expected ..." without the character classes it lists (``['A' ..= 'Z' | ...]``)."""
+    if "Prefix not found" in message:
+        return (f"a prefix is not declared (predeclared: {', '.join(p + ':' for p in PREFIXES)}; "
+                "others need PREFIX)")
+    expected = message.removeprefix("expected one of ").removeprefix("expected ")
+    if expected == message:
+        return message
+    words = [w for w in re.split(r",\s*(?=[^,]*(?:$|,))", expected.replace("\n", " "))
+             if w and not w.lstrip().startswith(("[", "|", "'"))]
+    if not words:
+        return "unexpected character here"
+    return f"expected {words[0].strip()}" if len(words) == 1 else f"expected one of {', '.join(w.strip() for w in words)}"
+
+
+def dataset(store: GraphStore, graph: str | None) -> dict[str, Any]:
+    """The query dataset: every graph as default graph and the files' graphs for GRAPH ?program,
+    or one file's graph, its derived layer and the vocabulary."""
+    if graph is None:
+        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in store.graphs()]}
+    if graph not in store.graphs():
+        raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
+    return {"default_graph": [ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],
+            "named_graphs": [ox.NamedNode(graph)]}
+
+
+def _warnings(store: GraphStore, graph: str | None) -> list[str]:
+    out = []
+    status = vocabulary_status(store)
+    if status != "current":
+        out.append(f"the store's vocabulary graph is {status}: load a file again to refresh it")
+    stale = [g for g in ([graph] if graph else store.graphs()) if not store.has_graph(derived_graph_iri(g))]
+    if stale:
+        out.append(f"no derived layer for {', '.join(stale)} (loaded by an older stepnc-graph): load it again")
+    return out
+
+
+def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = None,
+            graph: str | None = None) -> QueryResult:
+    """Run ``query`` with ``params`` (command-line strings) over the store or one file's ``graph``."""
+    vocabulary_for_queries(store)
+    substitutions = bind(store, query, params or {})
+    options = dataset(store, graph)
+    try:
+        result = store.query(query.text, prefixes=PREFIXES, substitutions=substitutions or None, **options)
+    except SyntaxError as exc:
+        raise _syntax_error(exc, query) from None
+    except RuntimeError as exc:
+        missing = re.search(r"variable \?(\w+) in its SELECT projection", str(exc))
+        if missing:
+            name = missing.group(1)
+            declared = query.param(name)
+            raise QueryError(f"parameter {name}: the query must SELECT ?{name} to take it as a parameter",
+                             query.source, declared.line if declared else None, parameter=name) from None
+        raise QueryError(f"query failed: {exc}", query.source) from None
+    warnings = _warnings(store, graph)
+    if isinstance(result, ox.QueryBoolean):
+        return QueryResult("ask", boolean=bool(result), warnings=warnings,
+                           _json=result.serialize(format=ox.QueryResultsFormat.JSON) or b"")
+    if isinstance(result, ox.QueryTriples):
+        return QueryResult("graph", triples=list(result), warnings=warnings)
+    data = result.serialize(format=ox.QueryResultsFormat.JSON) or b""
+    parsed = ox.parse_query_results(data, format=ox.QueryResultsFormat.JSON)
+    assert isinstance(parsed, ox.QuerySolutions)
+    variables = [v.value for v in parsed.variables]
+    terms = [tuple(row[v] for v in variables) for row in parsed]
+    return QueryResult("select", variables, terms, warnings=warnings, _json=data)
+
+
+def query(store: GraphStore, name_or_text: str, *, graph: str | None = None, **params: Any) -> QueryResult:
+    """Run a library query (by name), a ``.rq`` file or SPARQL text; keyword arguments are parameters.
+
+        rows = query(store, "workingsteps-by-tool-type", tool_type="knurling_tool").rows
+    """
+    return execute(store, resolve(name_or_text), {k: _text(v) for k, v in params.items()}, graph)
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def describe_library(directory: Path | None = None) -> list[dict[str, Any]]:
+    """The library as plain data (name, title, description, parameters, examples)."""
+    return [{"name": q.name, "title": q.title, "description": q.description,
+             "params": [{"name": p.name, "type": p.type, "default": p.default, "description": p.doc}
+                        for p in q.params], "examples": list(q.examples)} for q in library(directory)]

@@ -1,0 +1,266 @@
+"""The derived layer and the vocabulary graph: contents, round trip, atomic replace and unload."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pyoxigraph as ox
+import pytest
+
+import stepnc_graph as sg
+from stepnc_graph.derive import compile_rules, iso14649_rules
+from stepnc_graph.naming import (
+    ANALYSIS_NS,
+    ATTRIBUTE_NS,
+    STEPNC_NS,
+    VOCABULARY_GRAPH,
+    derived_graph_iri,
+    execution_step_iri,
+)
+from stepnc_graph.store import GraphStore
+from stepnc_graph.vocabulary import (
+    DIGEST,
+    stored_digest,
+    vocabulary_digest,
+    vocabulary_files,
+    vocabulary_for_queries,
+    vocabulary_status,
+)
+
+from conftest import FIXTURES, ROOT
+
+EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
+STRUCTURES = FIXTURES / "query" / "structures.stp"
+SLEEVE = FIXTURES / "query" / "sleeve_two_setups.stp"
+PREFIXES = (f"PREFIX stepnc: <{STEPNC_NS}> PREFIX sga: <{ANALYSIS_NS}> PREFIX attr: <{ATTRIBUTE_NS}> "
+            "PREFIX rdfs: <http://www.w3.org/2000/01/rdf-schema#> PREFIX p21: <https://w3id.org/stepnc-graph/p21#> ")
+
+
+def rows(store: GraphStore, graph: str, query: str) -> list[tuple[str, ...]]:
+    """Run ``query`` over ``graph``'s derived layer (default graph); values as short strings."""
+    result = store.query(PREFIXES + query, default_graph=[ox.NamedNode(derived_graph_iri(graph))])
+    prefix = graph + "/"
+    return [tuple("" if t is None else str(t.value).removeprefix(prefix) for t in r) for r in result]
+
+
+@pytest.fixture(scope="module")
+def example() -> tuple[GraphStore, str]:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [EXAMPLE])
+    vocabulary_for_queries(store)  # a throw-away store gets the vocabulary when queries need it
+    return store, r.graph
+
+
+def test_class_closure_for_process_instances_only(example: tuple[GraphStore, str]) -> None:
+    store, g = example
+    types = rows(store, g, "SELECT ?c WHERE { <%s/i50> a ?c } ORDER BY ?c" % g)
+    assert [t[0].rsplit("#", 1)[1] for t in types] == [
+        "RoughingOperation", "facing", "machining_operation", "operation", "turning_machining_operation"]
+    assert rows(store, g, "SELECT ?c WHERE { <%s/i201> a ?c }" % g) == []  # a cartesian point: nothing
+    assert rows(store, g, "SELECT ?c WHERE { <%s/i260> a ?c }" % g) == []  # a tolerance: left out
+    # the data graph's own rdf:type is not repeated, so a union of both graphs has no duplicates
+    assert rows(store, g, "SELECT ?c WHERE { <%s/i50> a stepnc:facing_rough }" % g) == []
+
+
+def test_generic_values_and_labels(example: tuple[GraphStore, str]) -> None:
+    store, g = example
+    assert rows(store, g, "SELECT ?v ?l WHERE { <%s/i30> attr:its_id ?v ; rdfs:label ?l }" % g) == [
+        ("WS1 FACE RIGHT ROUGH", "WS1 FACE RIGHT ROUGH")]
+    ops = rows(store, g, "SELECT ?ws ?tool WHERE { ?ws attr:its_operation/attr:its_tool ?tool } ORDER BY ?ws")
+    assert [o[1] for o in ops] == ["i100"] * 4 + ["i110"] + ["i100"] * 3
+    # a value that is a blank node (a list head) is the same node as in the file's graph
+    both = store.query(PREFIXES + f"SELECT ?h WHERE {{ GRAPH <{g}> {{ <{g}/i3> stepnc:workplan.its_elements ?h }} "
+                                  f"GRAPH <{derived_graph_iri(g)}> {{ <{g}/i3> attr:its_elements ?h }} }}")
+    assert len(list(both)) == 1
+    # empty its_id gives no label; a resource's attributes are not materialised
+    assert rows(store, g, "SELECT ?s WHERE { ?s attr:coordinates ?c }") == []
+
+
+def test_list_positions_on_the_cells_of_process_lists(example: tuple[GraphStore, str]) -> None:
+    store, g = example
+    found = store.query(PREFIXES + f"SELECT ?ws ?i WHERE {{ GRAPH <{g}> {{ <{g}/i3> stepnc:workplan.its_elements "
+                                   f"?h . ?h <http://www.w3.org/1999/02/22-rdf-syntax-ns#rest>* ?c . ?c "
+                                   f"<http://www.w3.org/1999/02/22-rdf-syntax-ns#first> ?ws }} "
+                                   f"GRAPH <{derived_graph_iri(g)}> {{ ?c sga:index ?i }} }} ORDER BY ?i")
+    assert [(r["ws"].value.rsplit("/", 1)[1], int(r["i"].value)) for r in found] == [
+        ("i30", 1), ("i31", 2), ("i32", 3), ("i33", 4), ("i34", 5)]
+
+
+def test_execution_order_of_the_example(example: tuple[GraphStore, str]) -> None:
+    store, g = example
+    steps = rows(store, g, "SELECT ?o ?ws ?wp ?setup ?next WHERE { ?s a sga:ExecutionStep ; sga:order ?o ; "
+                           "sga:executes ?ws ; sga:workplan ?wp ; sga:setup ?setup OPTIONAL { ?s sga:next ?next } } "
+                           "ORDER BY ?o")
+    assert steps == [(str(n), f"i{30 + n - 1}", "i3" if n <= 5 else "i4", "i20" if n <= 5 else "i24",
+                      f"derived/step{n + 1}" if n < 8 else "") for n in range(1, 9)]
+    assert execution_step_iri(g, 3) == f"{g}/derived/step3"
+    features = rows(store, g, "SELECT ?ws ?f WHERE { ?ws sga:feature ?f } ORDER BY ?ws")
+    assert ("i34", "i42") in features and len(features) == 8
+
+
+def test_execution_order_through_every_program_structure() -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [STRUCTURES])
+    steps = rows(store, r.graph, "SELECT ?o ?ws ?wp ?setup WHERE { ?s sga:order ?o ; sga:executes ?ws ; "
+                                 "sga:workplan ?wp ; sga:setup ?setup } ORDER BY ?o")
+    # nested workplan with its own setup; PARALLEL (a SET) in #id order; IF true then false branch;
+    # WHILE body once (R30 runs twice); the cycle CYCLE A -> CYCLE B -> CYCLE A entered once; the
+    # PROGRAM_STOP is no workingstep; R39 is in no workplan
+    assert [(s[1], s[2], s[3]) for s in steps] == [
+        ("i30", "i2", "i20"), ("i32", "i3", "i21"), ("i33", "i3", "i21"), ("i34", "i4", "i20"),
+        ("i35", "i4", "i20"), ("i36", "i5", "i20"), ("i37", "i7", "i20"), ("i30", "i6", "i20"),
+        ("i38", "i8", "i20"), ("i31", "i2", "i20")]
+    assert [s[0] for s in steps] == [str(n) for n in range(1, 11)]
+
+
+def test_without_a_project_every_top_level_structure_is_a_root(tmp_path: Path) -> None:
+    text = STRUCTURES.read_text().replace("#1=PROJECT('STRUCTURES',#2,(#10),$,$,$);\n", "")
+    path = tmp_path / "no_project.stp"
+    path.write_text(text)
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path])
+    steps = rows(store, r.graph, "SELECT ?ws WHERE { ?s sga:order ?o ; sga:executes ?ws } ORDER BY ?o")
+    # roots in #id order: MAIN (#2) -- CYCLE A/B are contained in each other and in MAIN
+    assert [s[0] for s in steps] == ["i30", "i32", "i33", "i34", "i35", "i36", "i37", "i30", "i38", "i31"]
+
+
+def test_turning_workingstep_features_and_nested_lists(tmp_path: Path) -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [SLEEVE])
+    assert rows(store, r.graph, "SELECT ?f WHERE { <%s/i42> sga:feature ?f } ORDER BY ?f" % r.graph) == [
+        ("i51",), ("i57",)]
+    # its_features is a list: its two cells are indexed 1, 2 (rdf:rest is in the file's graph)
+    union = store.query(PREFIXES + "SELECT ?i WHERE { <%s/i42> attr:its_features/<http://www.w3.org/1999/02/"
+                                   "22-rdf-syntax-ns#rest>*/sga:index ?i } ORDER BY ?i" % r.graph,
+                        use_default_graph_as_union=True)
+    assert [int(x["i"].value) for x in union] == [1, 2]
+
+
+def test_rules_cover_what_the_queries_need() -> None:
+    rules = iso14649_rules()
+    assert f"{STEPNC_NS}workplan.its_elements" in rules.list_properties
+    assert f"{STEPNC_NS}cartesian_point.coordinates" not in rules.list_properties  # geometry: left out
+    assert rules.generic[f"{STEPNC_NS}turning_workingstep.its_operation"] == f"{ATTRIBUTE_NS}its_operation"
+    assert f"{ANALYSIS_NS}ThreadCuttingTool" in rules.superclasses[f"{STEPNC_NS}tap"]
+    assert f"{ANALYSIS_NS}ThreadCuttingTool" in rules.superclasses[f"{STEPNC_NS}tapered_tap"]
+    assert "machining_workingstep" in rules.workingsteps and "workplan" in rules.structures
+
+
+def test_rules_compile_for_any_model(iso_model) -> None:  # type: ignore[no-untyped-def]
+    catalog, model = iso_model
+    assert compile_rules(model, catalog.naming) == iso14649_rules()
+
+
+# -- round trip, replace, unload ------------------------------------------------------------------
+
+
+def test_the_writer_ignores_the_derived_layer(tmp_path: Path) -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [SLEEVE])
+    with_layer = sg.export(store, "p21", r.graph)
+    store.oxigraph.remove_graph(ox.NamedNode(derived_graph_iri(r.graph)))
+    assert sg.export(store, "p21", r.graph) == with_layer
+    again = tmp_path / "sleeve_two_setups.stp"
+    again.write_bytes(with_layer)
+    [r2] = sg.load(store, [again], replace=True)  # the exported program gives the same derived layer
+    assert r2.derived_triples == r.derived_triples
+    assert store.count(derived_graph_iri(r.graph)) == r.derived_triples
+
+
+@pytest.mark.parametrize("memory", [False, True], ids=["disk", "memory"])
+def test_reload_replaces_and_unload_removes_the_layer(tmp_path: Path, memory: bool) -> None:
+    store = sg.open_store(None if memory else tmp_path / "store", memory=memory)
+    path = tmp_path / "shaft.stp"
+    path.write_text(EXAMPLE.read_text())
+    [r] = sg.load(store, [path])
+    layer = derived_graph_iri(r.graph)
+    assert store.count(layer) == r.derived_triples > 400
+    # a new version with one workingstep less: no step of the old layer survives
+    path.write_text(EXAMPLE.read_text().replace("#3=WORKPLAN('SETUP 1 - RIGHT END',(#30,#31,#32,#33,#34)",
+                                                "#3=WORKPLAN('SETUP 1 - RIGHT END',(#30,#31,#32,#33)"))
+    [r2] = sg.load(store, [path])
+    assert store.count(layer) == r2.derived_triples
+    assert rows(store, r.graph, "SELECT (MAX(?o) AS ?n) WHERE { ?s sga:order ?o }") == [("7",)]
+    assert store.graphs() == [r.graph]
+    assert sg.unload(store, r.graph) is True
+    assert store.count(layer) == 0 and store.graphs() == []
+    # on disk the vocabulary stays; a throw-away store gets it only when queried
+    assert (stored_digest(store) is None) == memory
+
+
+@pytest.mark.parametrize("memory", [False, True], ids=["disk", "memory"])
+def test_a_failing_derivation_rolls_the_whole_load_back(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                        memory: bool) -> None:
+    store = sg.open_store(None if memory else tmp_path / "store", memory=memory)
+    sg.load(store, [EXAMPLE])
+    before = sorted(str(q) for q in store.quads())
+    loader = sys.modules["stepnc_graph.loader"]
+    real = loader.derive
+
+    def failing(*args, **kwargs):  # type: ignore[no-untyped-def]
+        real(*args, **kwargs)  # the layer is written, then the load fails
+        raise RuntimeError("injected after the derived layer")
+
+    monkeypatch.setattr(loader, "derive", failing)
+    with pytest.raises(RuntimeError, match="injected"):
+        sg.load(store, [EXAMPLE])
+    assert sorted(str(q) for q in store.quads()) == before
+
+
+def test_reserved_graph_names_are_refused(tmp_path: Path) -> None:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [EXAMPLE])
+    with pytest.raises(ValueError, match="reserved"):
+        sg.load(store, [EXAMPLE], base_iri=VOCABULARY_GRAPH)
+    with pytest.raises(ValueError, match="reserved"):
+        sg.load(store, [EXAMPLE], base_iri=derived_graph_iri(r.graph))
+
+
+# -- the vocabulary graph --------------------------------------------------------------------------
+
+
+def test_vocabulary_graph_answers_subclass_questions(example: tuple[GraphStore, str]) -> None:
+    store, g = example
+    assert vocabulary_status(store) == "current"
+    # any turning tool body, through rdfs:subClassOf* in the vocabulary graph, over the file's graph
+    # alone (0 without the vocabulary)
+    query = PREFIXES + ("SELECT (COUNT(?b) AS ?n) WHERE { ?t stepnc:cutting_tool.its_tool_body ?b . "
+                        "?b a/rdfs:subClassOf* stepnc:turning_machine_tool_body }")
+    found = store.query(query, default_graph=[ox.NamedNode(g), ox.NamedNode(VOCABULARY_GRAPH)])
+    assert int(next(iter(found))["n"].value) == 2
+    assert int(next(iter(store.query(query, default_graph=[ox.NamedNode(g)])))["n"].value) == 0
+    # the derived closure says the same in one triple pattern
+    found = store.query(PREFIXES + "SELECT (COUNT(?b) AS ?n) WHERE { ?t stepnc:cutting_tool.its_tool_body ?b . "
+                                   "?b a stepnc:turning_machine_tool_body }", use_default_graph_as_union=True)
+    assert int(next(iter(found))["n"].value) == 2
+    subs = store.query(PREFIXES + f"SELECT ?p WHERE {{ GRAPH <{VOCABULARY_GRAPH}> {{ ?p rdfs:subPropertyOf "
+                                  "attr:its_id } } ORDER BY ?p")
+    assert len(list(subs)) == 9
+
+
+def test_stale_or_missing_vocabulary_is_rewritten_by_the_next_load(tmp_path: Path) -> None:
+    store = sg.open_store(tmp_path / "store")
+    assert vocabulary_status(store) == "missing"
+    sg.load(store, [EXAMPLE])
+    digest = vocabulary_digest()
+    size = store.count(VOCABULARY_GRAPH)
+    assert stored_digest(store) == digest
+    assert size == 1 + sum(len(list(ox.parse(path=str(p), format=ox.RdfFormat.TURTLE))) for p in vocabulary_files())
+    node = ox.NamedNode(VOCABULARY_GRAPH)
+    store.oxigraph.remove(ox.Quad(node, ox.NamedNode(DIGEST), ox.Literal(digest), node))
+    store.oxigraph.add(ox.Quad(node, ox.NamedNode(DIGEST), ox.Literal("0" * 64), node))
+    store.oxigraph.add(ox.Quad(node, node, node, node))  # something an old vocabulary had
+    assert vocabulary_status(store) == "stale"
+    sg.load(store, [STRUCTURES])
+    assert vocabulary_status(store) == "current" and store.count(VOCABULARY_GRAPH) == size
+
+
+def test_whole_store_nquads_hold_file_layer_and_vocabulary(tmp_path: Path) -> None:
+    store = sg.open_store(tmp_path / "store")
+    [r] = sg.load(store, [EXAMPLE])
+    data = sg.export(store, "nq").decode()
+    graphs = {line.rsplit(" ", 2)[-2] for line in data.splitlines() if line}
+    assert graphs == {f"<{r.graph}>", f"<{derived_graph_iri(r.graph)}>", f"<{VOCABULARY_GRAPH}>"}
+    one = sg.export(store, "nt", r.graph).decode()
+    assert "analysis#" not in one and "owl#Class" not in one  # a file's export: its graph only

@@ -1,0 +1,131 @@
+"""The workplan as a networkx graph: analyses, GraphML, the SVG picture, `stepnc-graph plan`."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import networkx as nx
+import pytest
+from click.testing import CliRunner
+
+import stepnc_graph as sg
+from stepnc_graph.cli import main
+from stepnc_graph.plan import Plan, PlanError, build_plan
+from stepnc_graph.store import GraphStore
+
+from conftest import FIXTURES, ROOT
+
+EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
+SLEEVE = FIXTURES / "query" / "sleeve_two_setups.stp"
+STRUCTURES = FIXTURES / "query" / "structures.stp"
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+def plan_of(path: Path) -> tuple[GraphStore, Plan]:
+    store = sg.open_store(memory=True)
+    sg.load(store, [path])
+    return store, build_plan(store)
+
+
+def test_analyses_of_the_sleeve() -> None:
+    store, plan = plan_of(SLEEVE)
+    assert [s.order for s in plan.execution_order()] == list(range(1, 14))
+    assert [(c.order, c.before.ref, c.after.ref) for c in plan.tool_changes()] == [
+        (5, "#100", "#110"), (6, "#110", "#120"), (7, "#120", "#130"), (9, "#130", "#100"), (10, "#100", "#140"),
+        (11, "#140", "#100")]
+    # the same answer as the SPARQL library, computed independently
+    rows = sg.query(store, "tool-changes").rows
+    assert [r["order"] for r in rows] == [c.order for c in plan.tool_changes()]
+    assert [(p.feature.label, p.finish, p.rough) for p in plan.precedence_violations()] == [("OD 40", 11, 12)]
+    assert {k: [s.order for s in v] for k, v in plan.workingsteps_per_setup().items()} == {
+        "SETUP 1": list(range(1, 9)), "SETUP 2": list(range(9, 14))}
+    assert plan.shared_tools() == {"#100": ["SETUP 1", "SETUP 2"]}
+    tool, uses = plan.critical_tool()  # type: ignore[misc]
+    assert (tool.label, tool.ref, uses) == ("T01 DCMT 11T304", "#100", 8)
+    pairs = [(f.label, r, fin) for f, r, fin in plan.rough_finish_pairs()]
+    assert ("OD 40", 12, 11) in pairs and ("FACE R", 1, 2) in pairs and ("M24X1.5 INNER", 7, 8) in pairs
+
+
+def test_the_graph_holds_the_plan_structure() -> None:
+    _, plan = plan_of(EXAMPLE)
+    g = plan.graph
+    kinds = nx.get_node_attributes(g, "kind")
+    assert sum(k == "workingstep" for k in kinds.values()) == 8
+    assert {k for k in kinds.values()} >= {"project", "workplan", "workingstep", "feature", "operation", "tool",
+                                          "technology", "setup"}
+    nxt = sorted((d["order"], g.nodes[u]["ref"], g.nodes[v]["ref"]) for u, v, d in g.edges(data=True)
+                 if d["kind"] == "next")
+    assert nxt[0] == (1, "#30", "#31") and len(nxt) == 7
+    elements = sorted((g.nodes[u]["ref"], d["index"], g.nodes[v]["ref"]) for u, v, d in g.edges(data=True)
+                      if d["kind"] == "element")
+    assert elements[:3] == [("#2", 1, "#3"), ("#2", 2, "#4"), ("#3", 1, "#30")]
+    # GraphML round-trips through networkx with every node and edge
+    back = nx.parse_graphml(plan.graphml())
+    assert back.number_of_nodes() == g.number_of_nodes() and back.number_of_edges() == g.number_of_edges()
+
+
+def test_the_picture_holds_every_workingstep_and_tool_change() -> None:
+    for path in (EXAMPLE, SLEEVE, STRUCTURES):
+        _, plan = plan_of(path)
+        root = ET.fromstring(plan.svg())
+        groups = {g.get("class"): [] for g in root.iter(f"{SVG}g")}
+        for g in root.iter(f"{SVG}g"):
+            groups[g.get("class")].append(g)
+        steps = [(int(g.get("data-order", 0)), g.get("data-ref")) for g in groups.get("workingstep", [])]
+        assert steps == [(s.order, s.workingstep.ref) for s in plan.steps]
+        changes = [(int(g.get("data-order", 0)), g.get("data-from"), g.get("data-to"))
+                   for g in groups.get("tool-change", [])]
+        assert changes == [(c.order, c.before.ref, c.after.ref) for c in plan.tool_changes()]
+        lanes = [g.get("data-setup") for g in groups.get("lane", [])]
+        assert lanes == list(plan.workingsteps_per_setup())
+        arcs = [p for p in root.iter(f"{SVG}path") if "rough-finish" in (p.get("class") or "")]
+        assert len(arcs) == len(plan.rough_finish_pairs())
+        assert sum("precedence" in (p.get("class") or "") for p in arcs) == len(plan.precedence_violations())
+
+
+def test_boxes_are_coloured_by_tool() -> None:
+    _, plan = plan_of(EXAMPLE)
+    root = ET.fromstring(plan.svg())
+    fill = {g.get("data-ref"): g.find(f"{SVG}rect").get("fill") for g in root.iter(f"{SVG}g")  # type: ignore[union-attr]
+            if g.get("class") == "workingstep"}
+    assert fill["#30"] == fill["#35"] != fill["#34"]  # T01 twice, T02 the groove
+
+
+def test_plan_needs_one_program() -> None:
+    store = sg.open_store(memory=True)
+    sg.load(store, [EXAMPLE, SLEEVE])
+    with pytest.raises(PlanError, match="holds 2 programs"):
+        build_plan(store)
+    with pytest.raises(PlanError, match="no loaded file"):
+        build_plan(store, "https://example.org/none")
+
+
+def test_cli_plan_on_a_file_and_a_store(tmp_path: Path) -> None:
+    runner = CliRunner()
+    svg, graphml = tmp_path / "plan.svg", tmp_path / "plan.graphml"
+    res = runner.invoke(main, ["plan", str(SLEEVE), "--svg", str(svg), "--graphml", str(graphml)])
+    assert res.exit_code == 0, res.output
+    assert "13 workingsteps, 6 tool changes" in res.stdout and "precedence: OD 40 #57" in res.stdout
+    assert "critical tool: T01 DCMT 11T304 #100 (8 workingsteps)" in res.stdout
+    assert ET.parse(svg).getroot().tag == f"{SVG}svg" and nx.read_graphml(graphml).number_of_nodes() > 13
+    store = str(tmp_path / "store")
+    assert runner.invoke(main, ["load", "--store", store, str(EXAMPLE), str(SLEEVE)]).exit_code == 0
+    assert runner.invoke(main, ["plan", "--store", store]).exit_code == 2  # two programs: --graph needed
+    res = runner.invoke(main, ["plan", "--store", store, "--graph",
+                               "https://w3id.org/stepnc-graph/data/shaft_two_setups.stp", "--format", "json"])
+    doc = json.loads(res.stdout)
+    assert res.exit_code == 0 and doc["workingsteps"] == 8 and [c["order"] for c in doc["tool_changes"]] == [5, 6]
+    assert runner.invoke(main, ["plan", str(tmp_path / "missing.stp")]).exit_code == 2
+
+
+def test_png_needs_the_extra_or_writes_a_png(tmp_path: Path) -> None:
+    out = tmp_path / "plan.png"
+    res = CliRunner().invoke(main, ["plan", str(EXAMPLE), "--png", str(out)])
+    try:
+        import cairosvg  # noqa: F401
+    except (ImportError, OSError):
+        assert res.exit_code == 2 and "stepnc-graph[png]" in res.stderr
+        return
+    assert res.exit_code == 0 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

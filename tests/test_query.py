@@ -1,0 +1,302 @@
+"""The query library and the query API: exact rows, parameters as terms, errors, result formats.
+
+Expected rows of every library query on the shipped example, the corrected seed programs and the
+query fixtures are in ``tests/fixtures/query/expected/<query>.csv`` (SPARQL 1.1 CSV). They were
+checked by hand against the programs (the independent checks below recompute some of them); after
+an intended change, regenerate with ``STEPNC_GRAPH_UPDATE_EXPECTED=1 python -m pytest
+tests/test_query.py -k expected`` and review the diff.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from collections import Counter
+from pathlib import Path
+
+import pyoxigraph as ox
+import pytest
+
+import stepnc_graph as sg
+from stepnc_graph.derive import iso14649_rules
+from stepnc_graph.naming import DATA_BASE, STEPNC_NS
+from stepnc_graph.part21 import read_file
+from stepnc_graph.query import QueryError, library, parse_header, resolve
+from stepnc_graph.resources import queries_dir
+from stepnc_graph.store import GraphStore
+
+from conftest import FIXTURES, ROOT
+
+PROGRAMS = ["examples/shaft_two_setups.stp", "tests/fixtures/p21/pass_seed_annex_d.stp",
+            "tests/fixtures/p21/pass_seed_annex_e.stp", "tests/fixtures/query/sleeve_two_setups.stp",
+            "tests/fixtures/query/structures.stp"]
+EXPECTED = FIXTURES / "query" / "expected"
+NAMES = sorted(p.stem for p in queries_dir().glob("*.rq"))
+SHAFT = DATA_BASE + "shaft_two_setups.stp"
+SLEEVE = DATA_BASE + "sleeve_two_setups.stp"
+
+
+@pytest.fixture(scope="module")
+def store() -> GraphStore:
+    cwd = os.getcwd()
+    os.chdir(ROOT)  # dcterms:source records the path as given: keep it relative and stable
+    try:
+        s = sg.open_store(memory=True)
+        sg.load(s, PROGRAMS)
+    finally:
+        os.chdir(cwd)
+    return s
+
+
+def csv_rows(data: bytes) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(data.decode("utf-8"), newline="")))
+
+
+# -- exact rows ------------------------------------------------------------------------------------
+
+
+def test_the_library_has_the_stable_names() -> None:
+    assert {"workingsteps-by-tool-type", "setup-sheet", "workplan-sequence", "operations-per-feature",
+            "features-without-operations", "roughed-not-finished", "technology-per-workingstep",
+            "tool-changes", "instance-counts"} <= set(NAMES)
+    assert len(NAMES) >= 15
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_expected_rows(name: str, store: GraphStore) -> None:
+    data = sg.query(store, name).serialize("csv").decode("utf-8").replace("\r\n", "\n")  # CSV ends lines CRLF
+    data = data.replace(f"{ROOT}/", "")  # source paths are absolute: the expected rows are of any checkout
+    path = EXPECTED / f"{name}.csv"
+    if os.environ.get("STEPNC_GRAPH_UPDATE_EXPECTED"):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(data, encoding="utf-8")
+    assert data == path.read_text(encoding="utf-8"), f"rows of {name} changed"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_one_graph_gives_that_programs_rows(name: str, store: GraphStore) -> None:
+    everything = csv_rows(sg.query(store, name).serialize("csv"))
+    for graph in (SHAFT, SLEEVE):
+        one = csv_rows(sg.query(store, name, graph=graph).serialize("csv"))
+        assert one == [r for r in everything if r["program"] == graph]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_rows_naming_a_thing_give_its_id_and_ref(name: str, store: GraphStore) -> None:
+    result = sg.query(store, name)
+    columns = result.variables
+    assert columns[0] == "program"
+    for thing in ("workingstep", "feature", "tool", "finish", "rough", "from_tool", "to_tool"):
+        if thing in columns:
+            assert f"{thing}_ref" in columns, (name, thing)
+            for row in result:
+                if row[thing] is not None or row.get(f"{thing}_ref") is not None:
+                    assert str(row[f"{thing}_ref"]).startswith("#"), (name, row)
+
+
+def test_library_headers_are_complete() -> None:
+    for q in library():
+        assert q.title and q.description and q.examples, q.name
+        ox.Store().query(q.text)  # self-contained: parses without the predeclared prefixes
+        for p in q.params:
+            assert f"?{p.name}" in q.text.split("WHERE")[0], f"{q.name}: parameter {p.name} must be selected"
+
+
+# -- independent checks of some answers -------------------------------------------------------------
+
+
+def test_grooving_tools_answer_the_mission_question(store: GraphStore) -> None:
+    rows = sg.query(store, "workingsteps-by-tool-type", graph=SHAFT).rows
+    assert [(r["workingstep"], r["workingstep_ref"], r["tool"], r["tool_ref"], r["setup"]) for r in rows] == [
+        ("WS5 RELIEF GROOVE", "#34", "T02 GROOVING 3MM", "#110", "SETUP 1")]
+    threads = sg.query(store, "workingsteps-by-tool-type", graph=SLEEVE, tool_type="sga:ThreadCuttingTool").rows
+    assert [r["workingstep"] for r in threads] == ["WS07 THREAD ROUGH", "WS08 THREAD FINISH"]
+    bodies = sg.query(store, "workingsteps-by-tool-type", graph=SLEEVE, tool_type="tool_body")
+    # every workingstep of the sleeve has a cutting tool with a body; WS13 machines two features
+    assert len(bodies) == 14 and len(set(bodies.column("workingstep_ref"))) == 13
+
+
+def _tool_changes_by_hand(path: Path) -> list[int]:
+    """Orders of the tool changes, from the Part 21 instances alone (in these files the main
+    workplan lists one workplan per setup, each a flat list of machining workingsteps)."""
+    inst = {i.id: i for i in read_file(path).instances()}
+    # MACHINING_WORKINGSTEP(its_id, its_secplane, its_feature, its_operation, its_effect); its_tool is
+    # the 6th parameter of a turning operation
+    tool_of = {i.id: int(inst[int(i.params[3])].params[5]) for i in inst.values() if i.name == "MACHINING_WORKINGSTEP"}
+    main = next(i for i in inst.values() if i.name == "PROJECT").params[1]
+    order = [int(ws) for wp in inst[int(main)].params[1] for ws in inst[int(wp)].params[1]]
+    return [n + 1 for n in range(1, len(order)) if tool_of[order[n]] != tool_of[order[n - 1]]]
+
+
+def test_tool_changes_agree_with_a_count_by_hand(store: GraphStore) -> None:
+    rows = sg.query(store, "tool-changes", graph=SHAFT).rows
+    assert [r["order"] for r in rows] == _tool_changes_by_hand(ROOT / PROGRAMS[0]) == [5, 6]
+    assert {r["changes"] for r in rows} == {2}
+    zero = sg.query(store, "tool-changes", graph=DATA_BASE + "pass_seed_annex_d.stp").rows
+    assert [(r["changes"], r["order"]) for r in zero] == [(0, None)]
+
+
+def test_instance_counts_agree_with_the_part21_file(store: GraphStore, iso_model) -> None:  # type: ignore[no-untyped-def]
+    _, model = iso_model
+    direct: Counter[str] = Counter(str(i.name).lower() for i in read_file(ROOT / PROGRAMS[2]).instances())
+    rolled: Counter[str] = Counter()
+    for entity, n in direct.items():
+        for cls in (entity, *model.ancestors(entity)):
+            rolled[cls] += n
+    rules = iso14649_rules()
+    for entity, n in direct.items():
+        for sup in rules.superclasses.get(STEPNC_NS + entity, ()):
+            if "#" in sup and not sup.startswith(STEPNC_NS):
+                rolled[sup.rsplit("#", 1)[1]] += n
+    rows = sg.query(store, "instance-counts", graph=DATA_BASE + "pass_seed_annex_e.stp").rows
+    assert {r["class"]: r["including_subtypes"] for r in rows} == dict(rolled)
+    assert {r["class"]: r["instances"] for r in rows if r["instances"]} == dict(direct)
+
+
+def test_precedence_and_planning_gaps(store: GraphStore) -> None:
+    assert [(r["feature"], r["finish"], r["rough"]) for r in sg.query(store, "finish-before-rough").rows] == [
+        ("OD 40", "WS11 OD40 FINISH", "WS12 OD40 ROUGH")]
+    assert [(r["program"], r["feature"]) for r in sg.query(store, "roughed-not-finished").rows] == [
+        (SHAFT, "RELIEF GROOVE"), (SLEEVE, "RELIEF")]
+    assert [r["feature"] for r in sg.query(store, "features-without-operations").rows] == ["SPARE GROOVE"]
+    assert [r["workingstep"] for r in sg.query(store, "workingsteps-not-in-plan").rows] == ["R39 UNUSED"]
+
+
+# -- parameters ------------------------------------------------------------------------------------
+
+
+def test_parameters_are_bound_as_terms_not_text(store: GraphStore, tmp_path: Path) -> None:
+    rq = tmp_path / "echo.rq"
+    rq.write_text("# title: echo\n# param: text (string) -- any text\n# param: n (integer) = 3\n"
+                  "SELECT ?text ?n ?len WHERE { BIND(STRLEN(?text) AS ?len) }\n")
+    hostile = '" } ; DROP ALL ; SELECT * WHERE { "'
+    [row] = sg.query(store, str(rq), text=hostile).rows
+    assert row == {"text": hostile, "n": 3, "len": len(hostile)}
+    assert sg.query(store, str(rq), text="x", n="-12").rows[0]["n"] == -12
+    with pytest.raises(QueryError, match="expected an integer") as bad:
+        sg.query(store, str(rq), text="x", n="3; DROP")
+    assert bad.value.parameter == "n" and bad.value.line == 3 and bad.value.source == str(rq)
+    with pytest.raises(QueryError, match="required"):
+        sg.query(store, str(rq))
+    with pytest.raises(QueryError, match="unknown parameter 'colour'; echo takes text, n"):
+        sg.query(store, str(rq), text="x", colour="red")
+
+
+def test_class_parameter_is_checked_against_the_vocabulary(store: GraphStore) -> None:
+    with pytest.raises(QueryError, match="no class 'grooving_tol'.*did you mean grooving_tool") as bad:
+        sg.query(store, "workingsteps-by-tool-type", tool_type="grooving_tol")
+    assert bad.value.line is not None and bad.value.source.endswith("workingsteps-by-tool-type.rq")
+    with pytest.raises(QueryError, match="Invalid IRI"):  # not a class name, and never query text
+        sg.query(store, "workingsteps-by-tool-type", tool_type="grooving_tool> } UNION { ?s ?p ?o")
+    iri = sg.query(store, "workingsteps-by-tool-type", tool_type=f"<{STEPNC_NS}grooving_tool>")
+    assert len(iri) == len(sg.query(store, "workingsteps-by-tool-type"))
+
+
+def test_undeclared_parameters_of_inline_queries(store: GraphStore) -> None:
+    q = "SELECT ?ws ?label WHERE { ?ws attr:its_id ?label ; a stepnc:workingstep }"
+    assert [r["ws"] for r in sg.query(store, q, label="WS5 RELIEF GROOVE")] == [f"{SHAFT}/i34"]
+    with pytest.raises(QueryError, match="must SELECT \\?missing"):
+        sg.query(store, "SELECT ?ws WHERE { ?ws attr:its_id ?missing }", missing="x")
+
+
+def test_header_parsing_and_malformed_declarations() -> None:
+    header = parse_header("# title: T\n# description: first\n#   second\n# param: a (decimal) = 1.5 -- doc\n"
+                          "SELECT ?a WHERE {}", "x.rq")
+    assert header["description"] == "first second"
+    [p] = header["params"]
+    assert (p.name, p.type, p.default, p.doc, p.line) == ("a", "decimal", "1.5", "doc", 4)
+    with pytest.raises(QueryError, match="malformed parameter") as bad:
+        parse_header("# title: T\n# param: a (colour)\nSELECT ?a {}", "x.rq")
+    assert (bad.value.source, bad.value.line) == ("x.rq", 2)
+
+
+# -- errors, read-only, formats --------------------------------------------------------------------
+
+
+def test_syntax_errors_are_positioned(store: GraphStore) -> None:
+    text = "SELECT ?x WHERE {\n  ?x a stepnc:workingstep ;\n     attr:its_id ?id ?\n}"
+    with pytest.raises(QueryError) as bad:
+        sg.query(store, text)
+    assert (bad.value.source, bad.value.line) == ("-e", 4) and bad.value.column is not None
+    assert "-e:4:" in str(bad.value) and "^" in str(bad.value)
+    with pytest.raises(QueryError, match="prefix is not declared"):
+        sg.query(store, "SELECT ?x WHERE { ?x a nope:thing }")
+
+
+def test_unknown_names_and_graphs(store: GraphStore) -> None:
+    with pytest.raises(QueryError, match="did you mean tool-changes"):
+        resolve("tool-change")
+    with pytest.raises(QueryError, match="no loaded file with graph"):
+        sg.query(store, "tool-changes", graph="https://example.org/nothing")
+    with pytest.raises(QueryError, match="no query file"):
+        resolve("missing.rq")
+
+
+def test_queries_are_read_only(store: GraphStore) -> None:
+    before = len(store.oxigraph)
+    for update in ("INSERT DATA { <urn:a> <urn:b> <urn:c> }", "DROP ALL", "CLEAR GRAPH <%s>" % SHAFT):
+        with pytest.raises(QueryError, match="syntax error"):
+            sg.query(store, update)
+    assert len(store.oxigraph) == before
+
+
+def test_ask_and_construct(store: GraphStore) -> None:
+    ask = sg.query(store, "ASK { ?op a sga:RoughingOperation }")
+    assert ask.kind == "ask" and ask.boolean is True
+    assert json.loads(ask.serialize("json")) == {"head": {}, "boolean": True}
+    graph = sg.query(store, "CONSTRUCT { ?ws rdfs:label ?l } WHERE { ?ws a stepnc:workingstep ; rdfs:label ?l }",
+                     graph=SHAFT)
+    assert graph.kind == "graph" and len(graph) == 8
+    assert graph.serialize("table").count(b"\n") == 8
+
+
+def test_result_formats_are_the_standard_ones(store: GraphStore) -> None:
+    result = sg.query(store, "setup-sheet", graph=SHAFT)
+    for fmt, kind in (("json", ox.QueryResultsFormat.JSON), ("tsv", ox.QueryResultsFormat.TSV)):
+        parsed = ox.parse_query_results(result.serialize(fmt), format=kind)
+        assert isinstance(parsed, ox.QuerySolutions)
+        assert [v.value for v in parsed.variables] == result.variables
+        assert [tuple(row) for row in parsed] == result.terms
+    table = csv_rows(result.serialize("csv"))  # CSV is lossy by design: plain values (SPARQL 1.1 CSV)
+    assert list(table[0]) == result.variables and len(table) == len(result) == 3
+    assert table[0]["tool"] == "T01 CNMG 120408" and table[0]["program"] == SHAFT
+    doc = json.loads(result.serialize("json"))
+    assert doc["head"]["vars"][0] == "program" and doc["results"]["bindings"][0]["uses"] == {
+        "type": "literal", "value": "4", "datatype": "http://www.w3.org/2001/XMLSchema#integer"}
+    md = result.serialize("md").decode().splitlines()
+    assert md[0].startswith("| program | setup |") and md[1].startswith("|---|") and len(md) == 5
+    table = result.serialize("table").decode().splitlines()
+    assert table[0].split()[:3] == ["program", "setup", "tool"] and "data:shaft_two_setups.stp" in table[1]
+    rows = result.rows
+    assert rows[0]["uses"] == 4 and isinstance(rows[0]["nose_radius"], float)
+
+
+def test_dataframe_when_pandas_is_installed(store: GraphStore) -> None:
+    pd = pytest.importorskip("pandas")
+    frame = sg.query(store, "tool-usage", graph=SHAFT).to_dataframe()
+    assert isinstance(frame, pd.DataFrame) and list(frame["workingsteps"]) == [7, 1]
+
+
+def test_warnings_for_a_store_without_vocabulary_or_layer(tmp_path: Path) -> None:
+    s = sg.open_store(tmp_path / "store")  # on disk: a throw-away store would get the vocabulary back
+    [r] = sg.load(s, [ROOT / PROGRAMS[0]])
+    s.oxigraph.remove_graph(ox.NamedNode(r.graph + "/derived"))
+    s.oxigraph.remove_graph(ox.NamedNode("https://w3id.org/stepnc-graph/iso14649"))
+    result = sg.query(s, "tool-changes")
+    assert any("vocabulary graph is missing" in w for w in result.warnings)
+    assert any("no derived layer" in w for w in result.warnings)
+
+
+def test_html_reference_helps_an_analyst() -> None:
+    html = (ROOT / "docs" / "ontology.html").read_text(encoding="utf-8")
+    for name in NAMES:  # every library query is listed as an example
+        assert f"<code>{name}</code>" in html
+    assert 'id="index"' in html and 'id="az-w"' in html and 'id="core"' in html
+    section = html[html.index('id="machining_workingstep"'):]
+    section = section[:section.index("</section>")]
+    assert "its_id (executable)" in section and "<code>attr:its_operation</code>" in section
+    assert '<a href="#machining_operation"><code>machining_operation</code></a>' in section  # type linked
+    used = html[html.index('id="setup"'):]
+    assert "Used by" in used[:used.index("</section>")] and "workplan</code></a>.<code>its_setup" in used
