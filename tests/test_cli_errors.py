@@ -127,13 +127,13 @@ def test_ctrl_c_exits_130_and_leaves_the_store_as_it_was(tmp_path: Path) -> None
     store = tmp_path / "s"
     assert run("load", "--store", str(store), str(EXAMPLE)).returncode == 0
     before = run("export", "--store", str(store), "--format", "nq").stdout
-    big = _big_program(tmp_path)
+    big = _big_program(tmp_path, 80_000)  # several seconds of loading: the interrupt comes well before the end
     child = subprocess.Popen([*CLI, "load", "--store", str(store), str(big)], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     time.sleep(1.5)
     child.send_signal(signal.SIGINT)
-    _, stderr = child.communicate(timeout=60)
-    assert child.returncode == 130, stderr
+    stdout, stderr = child.communicate(timeout=60)
+    assert child.returncode == 130, (stdout, stderr)
     assert "Traceback" not in stderr and "interrupted" in stderr
     assert run("export", "--store", str(store), "--format", "nq").stdout == before
 

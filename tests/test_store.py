@@ -93,6 +93,30 @@ def test_a_failed_replace_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch
         assert quads(r) == before
 
 
+def test_an_interrupt_that_keeps_the_database_alive_is_still_the_error_raised(tmp_path: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C during a load: its traceback holds the open database (a frame's local), so the rollback
+    cannot reopen it in this process. The interrupt must still be what the caller sees (the CLI exits
+    130), the store on disk must be as before, and this object must refuse further use clearly."""
+    with sg.open_store(tmp_path / "s") as s:
+        sg.load(s, [EXAMPLE])
+        before = quads(s)
+
+        def interrupted(self: GraphStore, *args: object) -> None:
+            database = self._db  # noqa: F841 -- held by this frame while the interrupt propagates
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(GraphStore, "_bulk_load", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            sg.load(s, [EXAMPLE])
+        with pytest.raises(StoreError, match="open it again"):
+            s.count()
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        assert quads(r) == before
+    with sg.open_store(tmp_path / "s") as w:  # the next writer recovers work/
+        assert quads(w) == before
+
+
 def test_readers_keep_their_generation_while_a_writer_publishes(tmp_path: Path) -> None:
     with sg.open_store(tmp_path / "s") as w:
         sg.load(w, [EXAMPLE])

@@ -51,6 +51,7 @@ import json
 import os
 import queue
 import shutil
+import sys
 import threading
 import time
 import uuid
@@ -231,6 +232,7 @@ class GraphStore:
         self._write_fd: int | None = None
         self._read_fd: int | None = None
         self._store: ox.Store | None = None
+        self._closed_because: str | None = None  # why _db refuses use (a rollback that could not reopen)
         self.generation: str | None = None
         #: how the last graph removal was done on disk: "delete" or "rebuild" (for tests and benchmarks)
         self.last_removal: str | None = None
@@ -451,13 +453,26 @@ class GraphStore:
         """
         if self.path is None:
             return
-        self._close_db()
+        old, self._store = self._store, None
+        # Called while an exception propagates. If anything still references the database (a
+        # frame of that exception's traceback, typically after Ctrl-C, or a caller's
+        # `store.oxigraph`), it stays open and may still write into work/ when it is finally
+        # dropped, so work/ must not be rebuilt under it: leave it marked dirty (the next open
+        # recovers it; readers read published generations and never see it), refuse further use
+        # of this object, and let the caller see the original exception, not one of ours.
+        held = old is not None and sys.getrefcount(old) > 2  # more than `old` and the call's argument
+        del old
+        gc.collect()
+        if held:
+            self._closed_because = (f"the store in {self.path} was rolled back, but this process still holds "
+                                    f"its database (the failed operation's traceback); open it again")
+            return
         try:
             self._recover()
             self._store = ox.Store(str(self._file("work")))
         except OSError as e:
-            raise StoreError(f"the load was rolled back on disk, but this process cannot reopen the store "
-                             f"({e}); open it again") from None
+            self._closed_because = (f"the store in {self.path} was rolled back on disk, but this process "
+                                    f"could not reopen it ({e}); open it again")
 
     def _collect(self) -> None:
         """Delete generations no reader holds, except the current one."""
@@ -511,7 +526,7 @@ class GraphStore:
     @property
     def _db(self) -> ox.Store:
         if self._store is None:
-            raise StoreError("the store is closed")
+            raise StoreError(self._closed_because or "the store is closed")
         return self._store
 
     # -- writing ----------------------------------------------------------------------
