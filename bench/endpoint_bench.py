@@ -26,7 +26,6 @@ import json
 import os
 import resource
 import shutil
-import socket
 import statistics
 import subprocess
 import sys
@@ -39,55 +38,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from generate import write  # noqa: E402
-
-TICKS = os.sysconf("SC_CLK_TCK")
-
+from oxigraph_server import OxigraphServer, ServerUnavailable  # noqa: E402
 
 def cli() -> list[str]:
     script = Path(sys.executable).parent / "stepnc-graph"
     return [str(script)] if script.exists() else [sys.executable, "-m", "stepnc_graph.cli"]
 
 
-def process_cpu(pid: int) -> float:
-    """User + system CPU seconds of a running process (Linux /proc)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICKS
-
-
-class Server:
-    """``oxigraph serve`` on a free loopback port, persistent in ``location``."""
-
-    def __init__(self, location: Path) -> None:
-        binary = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
-        if not Path(binary).exists():
-            raise SystemExit("the Oxigraph server is not installed: pip install oxigraph (a test extra)")
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            self.port = int(s.getsockname()[1])
-        self.url = f"http://127.0.0.1:{self.port}"
-        self.process = subprocess.Popen([binary, "serve", "--location", str(location), "--bind",
-                                         f"127.0.0.1:{self.port}"], stdout=subprocess.DEVNULL,
-                                        stderr=subprocess.DEVNULL)
-        import requests
-
-        for _ in range(200):
-            try:
-                if requests.get(f"{self.url}/query", params={"query": "ASK {}"}, timeout=1).ok:
-                    return
-            except requests.ConnectionError:
-                time.sleep(0.1)
-        self.stop()
-        raise SystemExit("the Oxigraph server did not start")
-
-    def cpu(self) -> float:
-        return process_cpu(self.process.pid)
-
-    def stop(self) -> None:
-        self.process.terminate()
-        self.process.wait(timeout=60)
-
-
-def timed_cli(args: list[str], server: Server | None = None) -> dict[str, float]:
+def timed_cli(args: list[str], server: OxigraphServer | None = None) -> dict[str, float]:
     """Run the CLI once: wall seconds, its CPU seconds, and the server's CPU seconds meanwhile."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     server_before = server.cpu() if server else 0.0
@@ -101,7 +59,7 @@ def timed_cli(args: list[str], server: Server | None = None) -> dict[str, float]
             "server_cpu": (server.cpu() - server_before) if server else 0.0}
 
 
-def measure_queries(store: Any, repeat: int, server: Server | None = None) -> dict[str, dict[str, float]]:
+def measure_queries(store: Any, repeat: int, server: OxigraphServer | None = None) -> dict[str, dict[str, float]]:
     from stepnc_graph.query import execute, library
 
     out = {}
@@ -130,7 +88,11 @@ def run(size: int, repeat: int, load_repeat: int) -> None:
     try:
         program = work / f"program-{size}.stp"
         write(size, program)
-        server = Server(work / "server")
+        server = OxigraphServer(work / "server")
+        try:
+            server.start()
+        except ServerUnavailable as exc:
+            raise SystemExit(str(exc)) from None
         try:
             embedded: list[dict[str, float]] = []
             remote: list[dict[str, float]] = []

@@ -6,16 +6,14 @@ import os
 import re
 import shlex
 import shutil
-import socket
 import subprocess
 import sys
-import time
-import urllib.request
 from pathlib import Path
 
 import pytest
 
 from conftest import ROOT
+from oxigraph_server import free_port, wait_until_answers
 
 CLI = [sys.executable, "-m", "stepnc_graph.cli"]
 
@@ -43,24 +41,6 @@ def test_every_tour_line_runs_as_printed(tmp_path: Path) -> None:
         assert "Traceback" not in done.stderr
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _wait_for(url: str, process: subprocess.Popen[bytes]) -> None:
-    for _ in range(300):
-        if process.poll() is not None:
-            raise AssertionError(f"{process.args} exited with {process.returncode}")
-        try:
-            with urllib.request.urlopen(f"{url}/query?query=ASK%7B%7D", timeout=1):
-                return
-        except OSError:
-            time.sleep(0.1)
-    raise AssertionError(f"{url} did not answer")
-
-
 def test_linked_data_lines_run_as_printed(tmp_path: Path) -> None:
     """The serve / --endpoint example: each line as printed (free ports instead of 7878 and 7879)."""
     oxigraph = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
@@ -70,7 +50,7 @@ def test_linked_data_lines_run_as_printed(tmp_path: Path) -> None:
     block = text.split("## Linked data: serving", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     env = {**os.environ, "STEPNC_GRAPH_STORE": str(tmp_path / "store")}
-    ports = {"7878": str(_free_port()), "7879": str(_free_port())}
+    ports = {"7878": str(free_port()), "7879": str(free_port())}
     outputs: list[str] = []
     background: list[subprocess.Popen[bytes]] = []
     try:
@@ -88,7 +68,7 @@ def test_linked_data_lines_run_as_printed(tmp_path: Path) -> None:
                                            stderr=subprocess.DEVNULL)
                 background.append(process)
                 port = next(p for p in ports.values() if p in command)
-                _wait_for(f"http://127.0.0.1:{port}", process)
+                wait_until_answers(f"http://127.0.0.1:{port}", process)
                 continue
             done = subprocess.run(full, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
             assert done.returncode == 0, (argv, done.returncode, done.stdout[-800:], done.stderr[-800:])

@@ -10,9 +10,7 @@ from __future__ import annotations
 import http.server
 import json
 import os
-import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -21,12 +19,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import requests
 
 import stepnc_graph as sg
 from stepnc_graph.remote import Endpoint, RemoteStore, StoreError, open_remote
 
 from conftest import FIXTURES, ROOT
+from oxigraph_server import OxigraphServer, ServerUnavailable, free_port
 
 pytestmark = pytest.mark.usefixtures("process_time_bound")
 
@@ -35,51 +33,13 @@ PROGRAMS = [EXAMPLE, *sorted((FIXTURES / "p21").glob("pass_*.stp"))]
 CLI = [sys.executable, "-m", "stepnc_graph.cli"]
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class OxigraphServer:
-    """``oxigraph serve`` on a loopback port, persistent in ``location``; stopped by its pid."""
-
-    def __init__(self, location: Path) -> None:
-        self.location = location
-        self.port = free_port()
-        self.process: subprocess.Popen[bytes] | None = None
-
-    @property
-    def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}"
-
-    def start(self) -> None:
-        binary = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
-        if not Path(binary).exists():
-            pytest.skip("the Oxigraph server (pip install oxigraph) is not installed")
-        self.process = subprocess.Popen([binary, "serve", "--location", str(self.location), "--bind",
-                                         f"127.0.0.1:{self.port}"], stdout=subprocess.DEVNULL,
-                                        stderr=subprocess.PIPE)
-        for _ in range(100):
-            try:
-                if requests.get(f"{self.url}/query", params={"query": "ASK {}"}, timeout=1).ok:
-                    return
-            except requests.ConnectionError:
-                time.sleep(0.1)
-        self.stop()
-        pytest.skip("the Oxigraph server did not start on a loopback port")
-
-    def stop(self, sig: int = signal.SIGTERM) -> None:
-        if self.process is not None and self.process.poll() is None:
-            os.kill(self.process.pid, sig)
-            self.process.wait(timeout=30)
-        self.process = None
-
-
 @pytest.fixture
 def server(tmp_path: Path) -> Iterator[OxigraphServer]:
     srv = OxigraphServer(tmp_path / "server-data")
-    srv.start()
+    try:
+        srv.start()
+    except ServerUnavailable as exc:
+        pytest.skip(str(exc))
     yield srv
     srv.stop()
 

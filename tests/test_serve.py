@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -16,6 +15,7 @@ import requests
 
 import stepnc_graph as sg
 
+from oxigraph_server import free_port
 from conftest import ROOT
 
 pytestmark = pytest.mark.usefixtures("process_time_bound")
@@ -25,12 +25,6 @@ DAMAGED = ROOT / "examples" / "shaft_damaged.stp"
 CLI = [sys.executable, "-m", "stepnc_graph.cli"]
 COUNT = "SELECT (COUNT(*) AS ?n) WHERE { GRAPH ?g { ?s ?p ?o } }"
 JSON = {"Accept": "application/sparql-results+json"}
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Serving:

@@ -1,0 +1,82 @@
+"""A real SPARQL endpoint for the benchmarks and tests: Oxigraph's own server (``oxigraph serve``,
+from the ``oxigraph`` PyPI package, a test extra) on a free loopback port, stopped by its pid."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+TICKS = os.sysconf("SC_CLK_TCK")
+
+
+class ServerUnavailable(Exception):
+    """The server is not installed here, or did not start (the message says which)."""
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until_answers(url: str, process: subprocess.Popen[bytes] | None = None, seconds: float = 30) -> None:
+    """Wait until ``url/query`` answers a SPARQL ASK; ServerUnavailable if ``process`` exits or time runs out."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if process is not None and process.poll() is not None:
+            raise ServerUnavailable(f"{process.args} exited with {process.returncode}")
+        try:
+            with urllib.request.urlopen(f"{url}/query?query=ASK%7B%7D", timeout=1):
+                return
+        except OSError:
+            time.sleep(0.1)
+    raise ServerUnavailable(f"{url} did not answer within {seconds:.0f} s")
+
+
+def oxigraph_server_binary() -> str:
+    binary = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
+    if not Path(binary).exists():
+        raise ServerUnavailable("the Oxigraph server (pip install oxigraph) is not installed")
+    return binary
+
+
+class OxigraphServer:
+    """``oxigraph serve`` on a free loopback port, persistent in ``location``."""
+
+    def __init__(self, location: Path) -> None:
+        self.location = location
+        self.port = free_port()
+        self.process: subprocess.Popen[bytes] | None = None
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def start(self) -> None:
+        self.process = subprocess.Popen([oxigraph_server_binary(), "serve", "--location", str(self.location),
+                                         "--bind", f"127.0.0.1:{self.port}"], stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL)
+        try:
+            wait_until_answers(self.url, self.process)
+        except ServerUnavailable:
+            self.stop()
+            raise
+
+    def cpu(self) -> float:
+        """User + system CPU seconds the server has used (Linux /proc)."""
+        assert self.process is not None
+        fields = Path(f"/proc/{self.process.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / TICKS
+
+    def stop(self, sig: int = signal.SIGTERM) -> None:
+        if self.process is not None and self.process.poll() is None:
+            os.kill(self.process.pid, sig)
+            self.process.wait(timeout=60)
+        self.process = None
