@@ -128,8 +128,11 @@ def test_ctrl_c_exits_130_and_leaves_the_store_as_it_was(tmp_path: Path) -> None
     assert run("load", "--store", str(store), str(EXAMPLE)).returncode == 0
     before = run("export", "--store", str(store), "--format", "nq").stdout
     big = _big_program(tmp_path, 80_000)  # several seconds of loading: the interrupt comes well before the end
+    # SIGINT back to its default in the child: a test run started in the background of a
+    # non-interactive shell inherits it ignored, and Python then (rightly) never raises KeyboardInterrupt
     child = subprocess.Popen([*CLI, "load", "--store", str(store), str(big)], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                             stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(1.5)
     child.send_signal(signal.SIGINT)
     stdout, stderr = child.communicate(timeout=60)

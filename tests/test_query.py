@@ -21,7 +21,7 @@ import pytest
 
 import stepnc_graph as sg
 from stepnc_graph.derive import iso14649_rules
-from stepnc_graph.naming import DATA_BASE, STEPNC_NS
+from stepnc_graph.naming import DATA_BASE, STEPNC_NS, VOCABULARY_GRAPH
 from stepnc_graph.part21 import read_file
 from stepnc_graph.query import QueryError, library, parse_header, resolve
 from stepnc_graph.resources import queries_dir
@@ -94,6 +94,36 @@ def test_rows_naming_a_thing_give_its_id_and_ref(name: str, store: GraphStore) -
             for row in result:
                 if row[thing] is not None or row.get(f"{thing}_ref") is not None:
                     assert str(row[f"{thing}_ref"]).startswith("#"), (name, row)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_queries_judged_vocabulary_free_give_the_same_rows_without_it(name: str, store: GraphStore) -> None:
+    """A throw-away store gets the vocabulary graph only for queries that may read it
+    (Query.needs_vocabulary): for every other library query the rows must not depend on it."""
+    from stepnc_graph.query import execute
+    from stepnc_graph.vocabulary import ensure_vocabulary, is_throwaway
+
+    query = resolve(name)
+    assert query.library and is_throwaway(store)
+    if query.needs_vocabulary:
+        pytest.skip(f"{name} gets the vocabulary graph")
+    bare = sg.open_store(memory=True)
+    bare.oxigraph.extend(q for q in store.oxigraph.quads_for_pattern(None, None, None, None)
+                         if q.graph_name != ox.NamedNode(VOCABULARY_GRAPH))
+    without = execute(bare, query).serialize("csv")
+    assert bare.count(VOCABULARY_GRAPH) == 0 and not execute(bare, query).warnings
+    ensure_vocabulary(store)
+    assert execute(store, query).serialize("csv") == without
+
+
+def test_user_queries_always_get_the_vocabulary(tmp_path: Path) -> None:
+    text = "SELECT ?p WHERE { <https://w3id.org/stepnc-graph/iso14649#turning_workingstep> ?p ?o } LIMIT 1"
+    rq = tmp_path / "mine.rq"
+    rq.write_text(text)
+    assert resolve(text).needs_vocabulary and resolve(str(rq)).needs_vocabulary
+    with sg.open_store(memory=True) as s:
+        sg.load(s, [ROOT / "examples" / "shaft_two_setups.stp"])
+        assert sg.query(s, text).rows  # the class is described in the vocabulary graph only
 
 
 def test_library_headers_are_complete() -> None:

@@ -28,6 +28,7 @@ Results: :class:`QueryResult`; ``csv``, ``tsv`` and ``json`` are the SPARQL
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import re
 from collections.abc import Iterator, Mapping
@@ -48,7 +49,7 @@ from stepnc_graph.naming import (
     derived_graph_iri,
 )
 from stepnc_graph.resources import queries_dir
-from stepnc_graph.vocabulary import vocabulary_for_queries, vocabulary_status
+from stepnc_graph.vocabulary import is_throwaway, vocabulary_for_queries, vocabulary_status
 
 if TYPE_CHECKING:
     from stepnc_graph.store import GraphStore
@@ -135,9 +136,28 @@ class Query:
     description: str = ""
     params: tuple[Param, ...] = ()
     examples: tuple[str, ...] = ()
+    library: bool = False  # one of the shipped library's queries (found by name)
 
     def param(self, name: str) -> Param | None:
         return next((p for p in self.params if p.name == name), None)
+
+    @property
+    def needs_vocabulary(self) -> bool:
+        """Whether the query may read the vocabulary graph (classes, labels, axioms).
+
+        A throw-away store gets that graph (some 19k triples, most of a small program's query
+        time) only when it may be read. Only library queries are judged by their text -- naming
+        no RDFS, OWL, SKOS or Dublin Core term and taking no class parameter, they read programs
+        and derived layers alone, and tests/test_query.py checks every one gives the same rows
+        without it; any other query gets it.
+        """
+        if not self.library or any(p.type == "class" for p in self.params):
+            return True
+        return bool(_VOCABULARY_TERMS.search(self.text))
+
+
+#: Prefixes and namespaces whose terms only the vocabulary graph holds.
+_VOCABULARY_TERMS = re.compile(r"\b(rdfs|owl|skos|dcterms|dct):|rdf-schema#|/owl#|/skos/core#|purl\.org/dc/")
 
 
 def parse_header(text: str, source: str) -> dict[str, Any]:
@@ -179,7 +199,7 @@ def read_query(path: Path, name: str | None = None) -> Query:
 
 def library(directory: Path | None = None) -> list[Query]:
     """Every query of the library (``queries/*.rq``), by name."""
-    return [read_query(p) for p in sorted((directory or queries_dir()).glob("*.rq"))]
+    return [dataclasses.replace(read_query(p), library=True) for p in sorted((directory or queries_dir()).glob("*.rq"))]
 
 
 def resolve(name_or_text: str, directory: Path | None = None) -> Query:
@@ -188,7 +208,7 @@ def resolve(name_or_text: str, directory: Path | None = None) -> Query:
     if NAME.match(name_or_text):
         path = folder / f"{name_or_text}.rq"
         if path.is_file():
-            return read_query(path)
+            return dataclasses.replace(read_query(path), library=True)
         names = [p.stem for p in sorted(folder.glob("*.rq"))]
         close = difflib.get_close_matches(name_or_text, names, n=3)
         raise QueryError(f"no library query {name_or_text!r}"
@@ -452,9 +472,9 @@ def dataset(store: GraphStore, graph: str | None) -> dict[str, Any]:
             "named_graphs": [ox.NamedNode(graph)]}
 
 
-def _warnings(store: GraphStore, graph: str | None) -> list[str]:
+def _warnings(store: GraphStore, graph: str | None, vocabulary: bool = True) -> list[str]:
     out = []
-    status = vocabulary_status(store)
+    status = vocabulary_status(store) if vocabulary else "current"
     if status != "current":
         out.append(f"the store's vocabulary graph is {status}: load a file again to refresh it")
     stale = [g for g in ([graph] if graph else store.graphs()) if not store.has_graph(derived_graph_iri(g))]
@@ -466,7 +486,8 @@ def _warnings(store: GraphStore, graph: str | None) -> list[str]:
 def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = None,
             graph: str | None = None) -> QueryResult:
     """Run ``query`` with ``params`` (command-line strings) over the store or one file's ``graph``."""
-    vocabulary_for_queries(store)
+    if query.needs_vocabulary:
+        vocabulary_for_queries(store)
     substitutions = bind(store, query, params or {})
     options = dataset(store, graph)
     try:
@@ -481,7 +502,7 @@ def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = 
             raise QueryError(f"parameter {name}: the query must SELECT ?{name} to take it as a parameter",
                              query.source, declared.line if declared else None, parameter=name) from None
         raise QueryError(f"query failed: {exc}", query.source) from None
-    warnings = _warnings(store, graph)
+    warnings = _warnings(store, graph, vocabulary=query.needs_vocabulary or not is_throwaway(store))
     if isinstance(result, ox.QueryBoolean):
         return QueryResult("ask", boolean=bool(result), warnings=warnings,
                            _json=result.serialize(format=ox.QueryResultsFormat.JSON) or b"")

@@ -230,10 +230,15 @@ def vocabulary_turtle(directory: Path | None = None) -> str:
 def vocabulary_for_queries(store: Store) -> None:
     """Give a throw-away (in-memory) store the vocabulary graph before queries read it: loads into
     such a store skip it, as most throw-away stores are never queried (load --memory, validate)."""
+    if is_throwaway(store):
+        ensure_vocabulary(store)
+
+
+def is_throwaway(store: Store) -> bool:
+    """An in-memory store: the loader leaves the vocabulary graph out of it (see above)."""
     from stepnc_graph.store import GraphStore
 
-    if store.path is None and isinstance(store, GraphStore):
-        ensure_vocabulary(store)
+    return store.path is None and isinstance(store, GraphStore)
 
 
 #: ISO 14649 entities that are geometry or bookkeeping in all but name: explicit
