@@ -53,22 +53,33 @@ def shape_files(shapes_dir: Path | None = None, process: bool = True) -> list[Pa
 
 
 class CompiledShapes:
-    """The checks of a set of shape files, and their shapes graph, parsed on first use (describing
-    results needs it; finding none does not)."""
+    """The checks of a set of shape files, and their shapes graph, read on first use and only as far
+    as needed: describing a result reads the files its check names (:attr:`Check.files`); finding
+    none reads no file at all."""
 
     def __init__(self, files: Sequence[Path], checks: tuple[Check, ...], graph: ShapesGraph | None = None) -> None:
         self.files = tuple(files)
         self.checks = checks
-        self._graph = graph
+        self._graph = graph  # every file, when the shapes were compiled here
+        self._partial = ShapesGraph()
+        self._read: set[int] = set()
 
     @property
     def graph(self) -> ShapesGraph:
-        if self._graph is None:
-            graph = ShapesGraph()
-            for f in self.files:
-                graph.add_file(f)
-            self._graph = graph
-        return self._graph
+        """The graph of every file."""
+        return self.describing(range(len(self.files)))
+
+    def describing(self, positions: Iterable[int]) -> ShapesGraph:
+        """A graph holding (at least) the files at ``positions``: blank nodes are named by file
+        position, so it names them as the compiled checks do."""
+        if self._graph is not None:
+            return self._graph
+        for position in sorted(set(positions) - self._read):
+            self._partial.add_file(self.files[position], position)
+            self._read.add(position)
+        if len(self._read) == len(self.files):
+            self._graph = self._partial
+        return self._partial
 
 
 @lru_cache(maxsize=8)
@@ -211,10 +222,11 @@ class _Describer:
         self.graph = graph
         self.shapes = shapes
         self.info: dict[str, tuple[int | None, int | None, str | None]] = {}
+        self._g: ShapesGraph | None = None
 
     @property
     def g(self) -> ShapesGraph:
-        return self.shapes.graph
+        return self._g if self._g is not None else self.shapes.graph
 
     def lookup(self, terms: Iterable[str]) -> None:
         """#id, line and entity name of instance IRIs, in one query."""
@@ -247,6 +259,7 @@ class _Describer:
         return None
 
     def results(self, rows: list[Row]) -> list[Result]:
+        self._g = self.shapes.describing({p for r in rows for p in r.check.files}) if rows else None
         focus_terms = {str(r.focus) if not isinstance(r.focus, ox.BlankNode) else self.owner(r.focus) or "" for r in rows}
         self.lookup(focus_terms | {str(r.value) for r in rows if isinstance(r.value, ox.NamedNode)})
         return [self.result(r) for r in rows]

@@ -26,7 +26,7 @@ from stepnc_graph.errors import StepncGraphWarning
 from stepnc_graph.validate.engine import Check, Compiler
 from stepnc_graph.validate.shapes import ShapesGraph
 
-FORMAT = 1
+FORMAT = 2  # 2: each check names the files that describe its results
 CACHE_FILE = "compiled-checks.json"
 
 
@@ -49,8 +49,8 @@ def digest(named_texts: Sequence[tuple[str, bytes]]) -> str:
 def compile_texts(named_texts: Sequence[tuple[str, str]]) -> tuple[ShapesGraph, list[Check]]:
     """The shapes graph of Turtle documents, in order, and its checks."""
     graph = ShapesGraph()
-    for name, text in named_texts:
-        graph.add_text(text, name)
+    for position, (name, text) in enumerate(named_texts):
+        graph.add_text(text, name, position)
     return graph, Compiler(graph).checks()
 
 
@@ -75,14 +75,14 @@ def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
         "path_term": check.path_term, "severity": check.severity, "query": check.query,
         "classes": sets.ref(check.classes), "closures": [sets.ref(c) for c in check.closures],
         "other_targets": list(check.other_targets), "parent": check.parent, "sparql_node": check.sparql_node,
-        "multi_typed_only": check.multi_typed_only,
+        "multi_typed_only": check.multi_typed_only, "files": list(check.files),
     }
 
 
 def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
     return Check(d["shape"], d["constraint"], d["component"], d["path"], d["path_term"], d["severity"], d["query"],
                  sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
-                 d["parent"], d["sparql_node"], bool(d["multi_typed_only"]))
+                 d["parent"], d["sparql_node"], bool(d["multi_typed_only"]), tuple(d["files"]))
 
 
 def dumps(names: Sequence[str], value: str, checks: Sequence[Check]) -> str:

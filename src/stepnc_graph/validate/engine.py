@@ -87,6 +87,9 @@ class Check:
     sparql_node: str | None = None  # the sh:sparql node (for its message)
     #: can fail only on a node with two rdf:types (sh:not of classes disjoint from the targets: ONEOF)
     multi_typed_only: bool = False
+    #: positions of the shape files that describe a result of this check (its shapes, the
+    #: constraint's argument): describing reads only those
+    files: tuple[int, ...] = ()
 
 
 class Compiler:
@@ -146,7 +149,8 @@ class Compiler:
         def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None,
                  multi: bool = False) -> Check:
             return Check(shape, constraint, component or f"<{SH}{COMPONENT[constraint]}>", path, path_term,
-                         severity, query, classes, closures, others, parent, sparql_node, multi)
+                         severity, query, classes, closures, others, parent, sparql_node, multi,
+                         self.describing_files(shape, parent, constraint, sparql_node))
 
         value = "?value"
         values = f"?this {path} ?value ." if path is not None else "BIND(?this AS ?value)"
@@ -191,6 +195,12 @@ class Compiler:
         for prop in self.g.objects(shape, sh("property")):
             if not self.deactivated(prop):
                 yield from self.shape_checks(prop, target_shape, shape)
+
+    def describing_files(self, shape: str, parent: str | None, constraint: str, sparql_node: str | None) -> tuple[int, ...]:
+        """The files a result of this check is described from: those of its shape, the node shape
+        holding it, its sh:sparql node and the constraint's arguments."""
+        nodes = [shape, parent, sparql_node, *self.g.objects(shape, sh(constraint))]
+        return tuple(sorted({self.g.origin[n] for n in nodes if n is not None and n in self.g.origin}))
 
     def excluded_classes(self, shape: str, targets: frozenset[str]) -> bool:
         """``shape`` is ``sh:class`` or ``sh:or`` of ``sh:class`` only, over classes disjoint from ``targets``.

@@ -39,26 +39,32 @@ class ShapesGraph:
         self._preds: dict[str, list[str]] = defaultdict(list)
         self.subclasses: dict[str, set[str]] = defaultdict(set)  # class -> direct subclasses
         self.instances: dict[str, set[str]] = defaultdict(set)  # class -> individuals typed in these files
-        self._blank_prefix = 0
+        #: subject -> position (0-based) of the file that first describes it
+        self.origin: dict[str, int] = {}
+        self._files = 0
 
-    def add_file(self, path: Path) -> None:
+    def add_file(self, path: Path, position: int | None = None) -> None:
         """Add a Turtle file (blank node labels kept apart per file)."""
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, ValueError) as exc:
             raise ShapesError(f"{path}: {exc}") from None
-        self.add_text(text, str(path))
+        self.add_text(text, str(path), position)
 
-    def add_text(self, text: str, name: str) -> None:
-        """Add a Turtle document; ``name`` (its file) is for error messages."""
-        self._blank_prefix += 1
+    def add_text(self, text: str, name: str, position: int | None = None) -> None:
+        """Add a Turtle document; ``name`` (its file) is for error messages. ``position`` is the
+        file's place in the full list of shape files (default: the next one): it names the file's
+        blank nodes, so a graph of some of the files names them as the graph of all of them does."""
+        if position is None:
+            position = self._files
+        self._files = max(self._files, position + 1)
         try:
             triples = list(ox.parse(text.encode("utf-8"), format=ox.RdfFormat.TURTLE))
         except (SyntaxError, ValueError) as exc:
             raise ShapesError(f"{name}: {exc}") from None
-        self.add(triples, f"f{self._blank_prefix}")
+        self.add(triples, f"f{position + 1}", position)
 
-    def add(self, triples: Iterable[ox.Triple | ox.Quad], tag: str) -> None:
+    def add(self, triples: Iterable[ox.Triple | ox.Quad], tag: str, position: int = 0) -> None:
         """Index triples. Blank nodes are renamed ``_:{tag}_b{n}`` in order of first appearance: the
         parser's own labels are random, and compiled checks (:mod:`.compiled`) name blank shapes that
         a graph parsed in another process must name the same way."""
@@ -68,6 +74,7 @@ class ShapesGraph:
                        self.term(t.object, tag, blanks))
             if (s, p) not in self._sp:
                 self._preds[s].append(p)
+                self.origin.setdefault(s, position)
             self._sp[(s, p)].append(o)
             self._po[(p, o)].append(s)
             if p == SUBCLASS:
