@@ -86,6 +86,15 @@ def test_example_and_corrected_annex_d_conform() -> None:
         ("shaft_two_setups.stp", 34, "Warning", "#42 GROOVE")]
 
 
+def test_the_corrected_plan_passes_every_process_rule() -> None:
+    """pass_plan.stp is fail_plan.stp corrected (tools that fit, at the width limit; rough before
+    finish; the groove finished; Annex C values in range): no result at all."""
+    fail = {r.shape for r in validate([VFIX / "fail_plan.stp"]).results}
+    assert len({s for s in fail if s and "process-" in s}) == 9  # what the failing twin breaks
+    report = validate([VFIX / "pass_plan.stp"])
+    assert report.conforms and not report.results, report.to_text()
+
+
 def test_corrected_annex_e_has_zero_corner_radii() -> None:
     """The corrected Annex E program still gives two SQUARE_U_PROFILEs corner radii of 0, which
     positive_length_measure (theoretical_size of toleranced_length_measure) forbids: found, not hidden."""
