@@ -39,18 +39,14 @@ sys.path.insert(0, str(HERE))
 
 from generate import write  # noqa: E402
 from oxigraph_server import OxigraphServer, ServerUnavailable  # noqa: E402
-
-def cli() -> list[str]:
-    script = Path(sys.executable).parent / "stepnc-graph"
-    return [str(script)] if script.exists() else [sys.executable, "-m", "stepnc_graph.cli"]
-
+from startup_bench import cli_argv  # noqa: E402
 
 def timed_cli(args: list[str], server: OxigraphServer | None = None) -> dict[str, float]:
     """Run the CLI once: wall seconds, its CPU seconds, and the server's CPU seconds meanwhile."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     server_before = server.cpu() if server else 0.0
     started = time.perf_counter()
-    done = subprocess.run([*cli(), *args], capture_output=True, text=True)
+    done = subprocess.run([*cli_argv(), *args], capture_output=True, text=True)
     wall = time.perf_counter() - started
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:

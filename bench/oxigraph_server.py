@@ -4,26 +4,21 @@ from the ``oxigraph`` PyPI package, a test extra) on a free loopback port, stopp
 from __future__ import annotations
 
 import os
-import shutil
 import signal
-import socket
 import subprocess
-import sys
 import time
 import urllib.request
 from pathlib import Path
+
+from stepnc_graph.serve import ServeError, free_port, oxigraph_binary
+
+__all__ = ["OxigraphServer", "ServerUnavailable", "free_port", "oxigraph_server_binary", "wait_until_answers"]
 
 TICKS = os.sysconf("SC_CLK_TCK")
 
 
 class ServerUnavailable(Exception):
     """The server is not installed here, or did not start (the message says which)."""
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def wait_until_answers(url: str, process: subprocess.Popen[bytes] | None = None, seconds: float = 30) -> None:
@@ -41,10 +36,11 @@ def wait_until_answers(url: str, process: subprocess.Popen[bytes] | None = None,
 
 
 def oxigraph_server_binary() -> str:
-    binary = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
-    if not Path(binary).exists():
-        raise ServerUnavailable("the Oxigraph server (pip install oxigraph) is not installed")
-    return binary
+    """The ``oxigraph`` program, found as ``stepnc-graph serve`` finds it."""
+    try:
+        return oxigraph_binary()
+    except ServeError as exc:
+        raise ServerUnavailable(str(exc)) from None
 
 
 class OxigraphServer:

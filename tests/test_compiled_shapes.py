@@ -127,3 +127,10 @@ def test_build_writes_and_checks_the_compiled_checks(tmp_path: Path) -> None:
     (root / "shapes" / "process").mkdir()
     shutil.copy(SHAPES / "process" / "turning.ttl", root / "shapes" / "process" / "turning.ttl")
     assert f"shapes/{CACHE_FILE}" in build(root, check=True).stale
+
+
+def test_digest_follows_content_not_line_ends() -> None:
+    """A checkout that converts line ends does not make the shipped compiled checks stale."""
+    unix = [("core.ttl", b"@prefix sh: <http://www.w3.org/ns/shacl#> .\n<urn:s> a sh:NodeShape .\n")]
+    dos = [(name, data.replace(b"\n", b"\r\n")) for name, data in unix]
+    assert digest(unix) == digest(dos) != digest([("other.ttl", unix[0][1])])

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT
-from oxigraph_server import free_port, wait_until_answers
+from oxigraph_server import ServerUnavailable, free_port, oxigraph_server_binary, wait_until_answers
 
 CLI = [sys.executable, "-m", "stepnc_graph.cli"]
 
@@ -43,9 +43,10 @@ def test_every_tour_line_runs_as_printed(tmp_path: Path) -> None:
 
 def test_linked_data_lines_run_as_printed(tmp_path: Path) -> None:
     """The serve / --endpoint example: each line as printed (free ports instead of 7878 and 7879)."""
-    oxigraph = shutil.which("oxigraph") or str(Path(sys.executable).parent / "oxigraph")
-    if not Path(oxigraph).exists():
-        pytest.skip("the Oxigraph server (pip install oxigraph, a test extra) is not installed")
+    try:
+        oxigraph = oxigraph_server_binary()
+    except ServerUnavailable as exc:
+        pytest.skip(str(exc))
     text = (ROOT / "README.md").read_text()
     block = text.split("## Linked data: serving", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
     shutil.copytree(ROOT / "examples", tmp_path / "examples")

@@ -8,7 +8,9 @@ three folders).
 
 from __future__ import annotations
 
+import hashlib
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 _PACKAGE = Path(__file__).resolve().parent
@@ -42,3 +44,18 @@ def shapes_dir() -> Path:
 
 def queries_dir() -> Path:
     return data_root() / "queries"
+
+
+def sources_digest(files: Iterable[tuple[str, bytes]]) -> str:
+    """SHA-256 over source files (relative name and content, in the order given) that a generated
+    file was built from: the digest a compiled file records to tell when it is stale.
+
+    Line ends are normalised to LF first, so a checkout that converts them does not make a
+    shipped file stale.
+    """
+    h = hashlib.sha256()
+    for name, data in files:
+        content = data.replace(b"\r\n", b"\n")
+        h.update(f"{name}\0{len(content)}\0".encode())
+        h.update(content)
+    return h.hexdigest()

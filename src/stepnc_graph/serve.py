@@ -75,7 +75,8 @@ def _die_with_parent() -> None:
         pass  # not Linux: a killed serve may leave its Oxigraph server running
 
 
-def _free_port() -> int:
+def free_port() -> int:
+    """A free TCP port on the loopback interface."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
@@ -122,7 +123,7 @@ class Endpoint:
     # -- backends ---------------------------------------------------------------------
 
     def _start_backend(self, location: Path, lock_fd: int | None) -> _Backend:
-        port = _free_port()
+        port = free_port()
         command = [self.binary, "serve" if self.writable else "serve-read-only", "--location", str(location),
                    "--bind", f"127.0.0.1:{port}", "--timeout-s", str(self.timeout)]
         if self.union_default_graph:

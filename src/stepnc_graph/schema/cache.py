@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from stepnc_graph.errors import StepncGraphWarning
+from stepnc_graph.resources import sources_digest
 from stepnc_graph.schema.catalog import Catalog, load_catalog_model
 from stepnc_graph.schema.model import (
     AggregateType,
@@ -90,13 +91,8 @@ def express_digest(directory: Path) -> str:
     Line ends are normalised to LF first, so a checkout that converts them
     does not make the shipped file stale.
     """
-    h = hashlib.sha256()
     files = sorted(p for p in directory.rglob("*") if p.is_file() and not _hidden(p.relative_to(directory)))
-    for path in files:
-        content = path.read_bytes().replace(b"\r\n", b"\n")
-        h.update(f"{path.relative_to(directory).as_posix()}\0{len(content)}\0".encode())
-        h.update(content)
-    return h.hexdigest()
+    return sources_digest((p.relative_to(directory).as_posix(), p.read_bytes()) for p in files)
 
 
 def _hidden(rel: Path) -> bool:

@@ -5,7 +5,7 @@ Compiling the shapes (parsing about 0.9 MB of Turtle into a
 about 0.23 s -- most of ``validate``'s time on a small program. The shipped
 shapes change only when the project is rebuilt, so the build writes their
 checks to ``shapes/compiled-checks.json`` (plain JSON: safe to read, no pickle),
-with a SHA-256 over the shape files' names and bytes. At run time the file is
+with a SHA-256 over the shape files' names and contents (line ends normalised, as for the EXPRESS). At run time the file is
 used only when that digest matches the files being validated with; otherwise
 the shapes are compiled in the process (with a :class:`CompiledShapesWarning`
 when the shipped files themselves changed since the build, never silently).
@@ -16,13 +16,13 @@ result needs describing: a conforming program never parses it.
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from stepnc_graph.errors import StepncGraphWarning
+from stepnc_graph.resources import sources_digest
 from stepnc_graph.validate.engine import Check, Compiler
 from stepnc_graph.validate.shapes import ShapesGraph
 
@@ -39,11 +39,8 @@ class StaleChecks(Exception):
 
 
 def digest(named_texts: Sequence[tuple[str, bytes]]) -> str:
-    """SHA-256 over each file's name and bytes, in order (any change to the set makes it stale)."""
-    h = hashlib.sha256()
-    for name, data in named_texts:
-        h.update(name.encode("utf-8") + b"\0" + data + b"\0")
-    return h.hexdigest()
+    """The shape files' digest, as the compiled model's of the EXPRESS (names, bytes, in order)."""
+    return sources_digest(named_texts)
 
 
 def compile_texts(named_texts: Sequence[tuple[str, str]]) -> tuple[ShapesGraph, list[Check]]:
