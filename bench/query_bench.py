@@ -64,7 +64,13 @@ def child_load(path: str, store_dir: str, derive: str) -> None:
         class _Nothing:
             triples = 0
 
+        class _NoTables:
+            @staticmethod
+            def tables() -> None:
+                return None  # the mapper writes no layer lines either
+
         loader.derive = lambda *args, **kwargs: _Nothing()  # type: ignore[assignment]
+        loader.iso14649_rules = lambda: _NoTables()  # type: ignore[assignment]
     with sg.open_store(store_dir) as store:
         started = time.perf_counter()
         ensure_vocabulary(store)  # a store gets it once, with its first load

@@ -32,9 +32,13 @@ toolpaths, tolerances and parameters
 (:data:`~stepnc_graph.vocabulary.NOT_DERIVED`), nor for the lists
 they hold. The vocabulary graph still answers ``rdfs:subClassOf*`` for them.
 
-The closure, generic values and labels are one CONSTRUCT evaluated by
-Oxigraph over the freshly loaded graph; the list positions and the order
-need walks over ``rdf:List`` chains, done in Python over a few SELECTs.
+The loader's mapper writes the closure, the generic values and the labels
+while it maps (:class:`~stepnc_graph.mapping.mapper.DerivedTables`), so they
+stream into the layer with the load; a load that has no mapper (JSON-LD)
+gets them from one CONSTRUCT over the loaded graph instead, and a test
+requires both ways to give the same layer. The list positions and the order
+need walks over ``rdf:List`` chains, done in Python over a few SELECTs, as
+are generic values that are blank nodes.
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from typing import TYPE_CHECKING
 
 import pyoxigraph as ox
 
+from stepnc_graph.mapping.mapper import DerivedTables
 from stepnc_graph.naming import (
     ANALYSIS_NS,
     P21_NS,
@@ -106,6 +111,11 @@ class DeriveRules:
     executables: tuple[str, ...]
     superclasses: dict[str, tuple[str, ...]] = field(compare=False)
     generic: dict[str, str] = field(compare=False)
+    labels: frozenset[str] = field(compare=False, default=frozenset())
+
+    def tables(self) -> DerivedTables:
+        """The part of the layer the loader's mapper writes as it maps (closure, generic values, labels)."""
+        return DerivedTables(self.superclasses, self.generic, self.labels)
 
 
 def _is_a(model: SchemaModel) -> dict[str, set[str]]:
@@ -190,6 +200,7 @@ def compile_rules(model: SchemaModel, naming: Naming) -> DeriveRules:
         superclasses={naming.declaration_iri(c): tuple(_iri(naming, s)[1:-1] for s in ss)
                       for c, ss in closure.items()},
         generic=generic,
+        labels=frozenset(labels),
     )
 
 
@@ -424,12 +435,16 @@ class DerivedLayer:
 
 
 def derive(store: Store, graph: str, target: Callable[[str], str],
-           rules: DeriveRules | None = None) -> DerivedLayer:
+           rules: DeriveRules | None = None, mapped: int | None = None) -> DerivedLayer:
     """Compute the derived layer of the file graph ``graph`` and write it.
 
     ``target(name)`` is the physical graph to read or write for ``graph`` and
     its derived graph now (a staging graph during an in-memory replacement,
-    see :meth:`GraphStore.replace_graph`).
+    see :meth:`GraphStore.replace_graph`). ``mapped`` is the number of layer
+    triples the loader's mapper already wrote (:class:`DerivedTables`: the
+    closure, the generic values that are no blank nodes and the labels); None
+    when it wrote none (a JSON-LD load), and then a CONSTRUCT over the graph
+    finds them.
     """
     rules = rules or iso14649_rules()
     reader = _Reader(store, target(graph))
@@ -439,7 +454,7 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     steps = order.flatten()
     node = ox.NamedNode(target(layer))
     text = "".join(order.triples(graph) + order.feature_triples() + [f"<{layer}> {_sga('layerOf')} <{graph}> .\n"])
-    constructed = reader.construct(rules.construct)
+    constructed = reader.construct(rules.construct) if mapped is None else b""
     # One bulk load for the text (each bulk load call costs ~0.1 s of file ingestion
     # on disk, whatever its size) and a plain transaction for the few quads that
     # hold blank nodes (measured: 8 ms for 2000 quads, against 110 ms in bulk).
@@ -454,7 +469,7 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         before = store.count(node.value)
         store.update(_blank_updates(rules, target(graph), node.value))
         written = store.count(node.value) - before
-    return DerivedLayer(layer, constructed.count(b"\n") + text.count("\n") + written, steps)
+    return DerivedLayer(layer, (mapped or 0) + constructed.count(b"\n") + text.count("\n") + written, steps)
 
 
 def _blank_updates(rules: DeriveRules, source: str, layer: str) -> str:

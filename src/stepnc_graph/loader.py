@@ -21,7 +21,7 @@ import pyoxigraph as ox
 from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
-from stepnc_graph.derive import derive
+from stepnc_graph.derive import derive, iso14649_rules
 from stepnc_graph.mapping.plan import P21_DUPLICATE, P21_LINE, P21_RAW_TEXT, iso14649_plans
 from stepnc_graph.naming import (
     P21_NS,
@@ -38,7 +38,7 @@ from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.sources import Source, SourceError
-from stepnc_graph.store import GraphStore, Store
+from stepnc_graph.store import Chunk, Companion, GraphStore, Store
 from stepnc_graph.vocabulary import ensure_vocabulary
 
 if TYPE_CHECKING:
@@ -56,6 +56,9 @@ _DATA_OPENER = re.compile(r"\bDATA[ \t\r\n]*[(;]")
 #: merged schema, which holds exactly the schemas stepnc-graph ships.
 SCHEMA_ALIASES = {"COMBINED_SCHEMA"}
 CHUNK_LINES = 20000
+#: derived-layer lines the mapper collects before they go to the store as one companion chunk
+#: (~10 MB of text: each chunk is one more bulk-load call, so not many, and not all kept to the end)
+DERIVED_CHUNK_LINES = 60000
 
 Progress = Callable[[int, int], None]
 
@@ -151,7 +154,10 @@ class _Load:
         several = len(_DATA_OPENER.findall(text)) > 1  # edition 3: instances record their section
         self.mapper = InstanceMapper(iso14649_plans(),
                                      lambda i: f"{prefix}i{i}", defined_ids(text),
-                                     name, text, (lambda i: section_iri(graph, i + 1)) if several else None)
+                                     name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
+                                     iso14649_rules().tables())
+        #: derived-layer triples the mapper wrote (None: none, see derive())
+        self.derived_written: int | None = 0
         self.result = LoadResult(name, graph)
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
@@ -162,10 +168,11 @@ class _Load:
         p = Path(path)
         return cls(str(p), p, read_source(p), lenient, base_iri or default_graph_iri(str(p)), progress)
 
-    def chunks(self) -> Iterator[str]:
+    def chunks(self) -> Iterator[Chunk]:
         out: list[str] = []
         result = self.result
         total = len(self.text)
+        derived = self.mapper.derived_lines
         for inst in self.reader.instances():
             self.mapper.map(inst, out)
             result.instances += 1
@@ -173,6 +180,8 @@ class _Load:
                 result.triples += len(out)
                 yield "".join(out)
                 out.clear()
+                if len(derived) >= DERIVED_CHUNK_LINES:
+                    yield self.derived_chunk()
                 if self.progress:
                     self.progress(inst.end, total)
         out.extend(self.aliases())
@@ -184,8 +193,18 @@ class _Load:
         meta = self.metadata()
         result.triples += len(meta)
         yield "".join(out) + "".join(meta)
+        if derived:
+            yield self.derived_chunk()
         if self.progress:
             self.progress(total, total)
+
+    def derived_chunk(self) -> Companion:
+        """The derived-layer lines mapped so far, as a chunk for the file's derived graph."""
+        lines = self.mapper.derived_lines
+        self.derived_written = (self.derived_written or 0) + len(lines)
+        chunk = Companion(derived_graph_iri(self.graph), "".join(lines))
+        lines.clear()
+        return chunk
 
     def aliases(self) -> list[str]:
         """``owl:sameAs`` links from alias IRIs to instances with an unshared its_id."""
@@ -291,9 +310,10 @@ def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | 
     """The N-Triples a load of ``path`` writes, in chunks, without a store.
 
     Everything but the store-dependent last step (the reference check and the
-    diagnostic count); the benchmark uses it to time the store on its own.
+    diagnostic count) and the derived layer; the benchmark uses it to time the
+    store on its own.
     """
-    yield from _Load.of_file(path, lenient, base_iri, None).chunks()
+    yield from (c for c in _Load.of_file(path, lenient, base_iri, None).chunks() if isinstance(c, str))
 
 
 def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
@@ -337,7 +357,7 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
             # a persistent store (on disk, or remote) always holds the vocabulary; a
             # throw-away one gets it when a query first needs it (query.execute)
             ensure_vocabulary(store)
-        job.result.derived_triples = derive(store, job.graph, target).triples
+        job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written).triples
 
     store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))

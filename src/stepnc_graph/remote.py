@@ -42,7 +42,7 @@ from urllib.parse import urlsplit, urlunsplit
 import pyoxigraph as ox
 
 from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
-from stepnc_graph.store import STAGING, StoreError
+from stepnc_graph.store import STAGING, Chunk, Companion, StoreError
 
 ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
 TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
@@ -114,19 +114,23 @@ def _value(term: Any) -> str:
     return str(term.value if hasattr(term, "value") else term)
 
 
-def _batches(chunks: Iterable[str], size: int) -> Iterator[bytes]:
-    """The chunks' text in UTF-8 batches of about ``size`` bytes (chunks end at triple boundaries)."""
+def _batches(chunks: Iterable[Chunk], size: int) -> Iterator[tuple[str | None, bytes]]:
+    """The chunks' text in UTF-8 batches of about ``size`` bytes (chunks end at triple boundaries),
+    each with its graph: None for the main graph, a companion's name for its chunks (sent alone)."""
     pending: list[bytes] = []
     used = 0
     for chunk in chunks:
+        if isinstance(chunk, Companion):
+            yield chunk.graph, chunk.text.encode("utf-8")
+            continue
         data = chunk.encode("utf-8")
         pending.append(data)
         used += len(data)
         if used >= size:
-            yield b"".join(pending)
+            yield None, b"".join(pending)
             pending, used = [], 0
     if pending:
-        yield b"".join(pending)
+        yield None, b"".join(pending)
 
 
 class RemoteStore:
@@ -189,7 +193,7 @@ class RemoteStore:
 
     # -- writing --------------------------------------------------------------------
 
-    def replace_graph(self, graph: str, chunks: Iterable[str],
+    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None:
         """Upload into staging graphs, then swap them in with one SPARQL Update request."""
@@ -197,8 +201,8 @@ class RemoteStore:
         stamp = int(time.time())
         staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
         try:
-            for body in _batches(chunks, BATCH_BYTES):
-                self._post_graph(staging[graph], body)
+            for name, body in _batches(chunks, BATCH_BYTES):
+                self._post_graph(staging[name or graph], body)
             if before_commit is not None:
                 before_commit(lambda name: staging[name])
             # the swap: one request, so one transaction. ADD (a copy) and then dropping the
@@ -229,7 +233,7 @@ class RemoteStore:
             self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in stale))
 
     def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
-        for body in _batches([text], BATCH_BYTES):
+        for _, body in _batches([text], BATCH_BYTES):
             self._post_graph(graph, body)
 
     def add_turtle(self, graph: str, text: str) -> None:

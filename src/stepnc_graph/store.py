@@ -90,6 +90,22 @@ def default_store_path() -> Path:
     return Path(os.environ.get(STORE_ENV) or DEFAULT_STORE)
 
 
+@dataclass(frozen=True)
+class Companion:
+    """Text for a companion graph of a load (its derived layer), met among the load's chunks.
+
+    A companion chunk is loaded where its graph is written now (a staging graph
+    during an in-memory or remote replacement), so a loader can write the
+    companion while it streams the main graph instead of keeping it for later.
+    """
+
+    graph: str
+    text: str
+
+
+Chunk = str | Companion
+
+
 class Store(Protocol):
     """What loading, export, info and queries need of a store: the embedded
     :class:`GraphStore` or a :class:`~stepnc_graph.remote.RemoteStore`."""
@@ -97,7 +113,7 @@ class Store(Protocol):
     path: Path | None
     last_removal: str | None
 
-    def replace_graph(self, graph: str, chunks: Iterable[str],
+    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None: ...
 
@@ -531,13 +547,14 @@ class GraphStore:
 
     # -- writing ----------------------------------------------------------------------
 
-    def replace_graph(self, graph: str, chunks: Iterable[str],
+    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None:
         """Atomically make ``graph`` hold exactly the N-Triples in ``chunks``.
 
         ``companions`` are graphs that belong to ``graph`` (its derived layer):
-        they are emptied with it and may be written by ``before_commit``.
+        they are emptied with it and may be written by :class:`Companion`
+        chunks and by ``before_commit``.
         ``before_commit(target)`` runs after the data is in the store but before
         the load is committed; ``target(name)`` gives the graph to write now for
         ``graph`` or a companion (a staging graph, for an in-memory
@@ -614,7 +631,8 @@ class GraphStore:
         rebuild.rename(self._file("work"))
         self._store = ox.Store(str(self._file("work")))
 
-    def _bulk_load(self, graph: str, chunks: Iterable[str]) -> None:
+    def _bulk_load(self, graph: str, chunks: Iterable[Chunk],
+                   target: Callable[[str], str] = lambda name: name) -> None:
         """Stream ``chunks`` into ``graph`` with one bulk loader per core.
 
         Measured on a 2-core machine: one ``bulk_load`` call ingests ~125k
@@ -624,24 +642,26 @@ class GraphStore:
         threads each run a streaming ``bulk_load`` over it (pyoxigraph releases
         the GIL while loading). Chunks end at instance boundaries and blank-node
         labels are unique per load, so every thread's document is self-contained.
+        A :class:`Companion` chunk is loaded on its own into ``target(its graph)``.
         """
-        work: queue.Queue[str | None] = queue.Queue(maxsize=2 * LOAD_THREADS)
+        work: queue.Queue[Chunk | None] = queue.Queue(maxsize=2 * LOAD_THREADS)
         errors: list[BaseException] = []
-        target = ox.NamedNode(graph)
+        main = ox.NamedNode(graph)
         finished = threading.Event()
         # No local name holds the database: a failure's traceback keeps this frame
         # alive, and the rollback must be able to close the database.
 
-        def pull(budget: int, large: list[str]) -> Iterator[str]:
+        def pull(budget: int, large: list[Chunk]) -> Iterator[str]:
             """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth;
-            a chunk too large for the streaming reader ends the call and goes to ``large``."""
+            a chunk too large for the streaming reader, or a companion's, ends the call and
+            goes to ``large``."""
             used = 0
             while used < budget:
                 item = work.get()
                 if item is None:
                     finished.set()
                     return
-                if len(item) > DIRECT_CHARS:
+                if type(item) is not str or len(item) > DIRECT_CHARS:
                     large.append(item)
                     return
                 used += len(item)
@@ -650,11 +670,13 @@ class GraphStore:
         def worker() -> None:
             try:
                 while not finished.is_set():
-                    large: list[str] = []
+                    large: list[Chunk] = []
                     stream = io.BufferedReader(_ChunkStream(pull(BATCH_CHARS, large)), 1 << 20)
-                    self._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=target, lenient=True)
+                    self._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=main, lenient=True)
                     for item in large:
-                        self._db.bulk_load(item.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=target,
+                        into, text = ((ox.NamedNode(target(item.graph)), item.text) if isinstance(item, Companion)
+                                      else (main, item))
+                        self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=into,
                                            lenient=True)
             except BaseException as exc:  # noqa: BLE001 -- handed to the producer thread
                 errors.append(exc)
@@ -678,7 +700,7 @@ class GraphStore:
         if errors:
             raise errors[0]
 
-    def _replace_in_memory(self, graph: str, chunks: Iterable[str],
+    def _replace_in_memory(self, graph: str, chunks: Iterable[Chunk],
                            before_commit: Callable[[Callable[[str], str]], None] | None,
                            companions: Sequence[str]) -> None:
         """A new graph loads in place (rollback: drop it and its companions); a replacement is
@@ -691,7 +713,7 @@ class GraphStore:
         replacing = any(self._db.contains_named_graph(ox.NamedNode(n)) for n in names)
         staging = {n: STAGING + uuid.uuid4().hex if replacing else n for n in names}
         try:
-            self._bulk_load(staging[graph], chunks)
+            self._bulk_load(staging[graph], chunks, lambda name: staging[name])
             if before_commit is not None:
                 before_commit(lambda name: staging[name])
         except BaseException:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from stepnc_graph.mapping import terms as T
@@ -99,18 +100,48 @@ def _refs(inst: Instance) -> list[int]:
     return found
 
 
+RDFS_LABEL = "<http://www.w3.org/2000/01/rdf-schema#label>"
+
+
+@dataclass(frozen=True)
+class DerivedTables:
+    """What the mapper writes into a file's derived layer while it maps (:mod:`stepnc_graph.derive`).
+
+    The mapper already holds each instance's class and attribute values as
+    N-Triples terms, so writing the class closure, the generic attribute
+    values and the labels here costs a dictionary look-up per value -- where
+    finding them again in the store took a SPARQL CONSTRUCT over the whole
+    graph and a second parse of its result. ``superclasses``: class IRI ->
+    the IRIs of its superclasses; ``generic``: attribute property IRI -> its
+    generic property IRI; ``labels``: the its_id properties whose non-empty
+    value is also an ``rdfs:label``. Values that are blank nodes (lists,
+    typed values) are left to :func:`~stepnc_graph.derive.derive`: a blank
+    node cannot be named in another graph's document.
+    """
+
+    superclasses: dict[str, tuple[str, ...]]
+    generic: dict[str, str]
+    labels: frozenset[str]
+
+
 class InstanceMapper:
     """Turns instances of one file into N-Triples lines for one named graph.
 
     ``defined`` is the set of instance ids the file defines (for unresolved
     references); ``subject`` mints an instance's IRI from its id; ``section``,
     given for a file with several DATA sections, mints the IRI of a section
-    from its 0-based index (each instance then records its section).
+    from its 0-based index (each instance then records its section). With
+    ``derived`` tables, the derived-layer lines of each mapped instance go to
+    :attr:`derived_lines` (see :class:`DerivedTables`).
     """
 
     def __init__(self, plans: Plans, subject: Callable[[int], str], defined: set[int], filename: str,
-                 source: str, section: Callable[[int], str] | None = None) -> None:
+                 source: str, section: Callable[[int], str] | None = None,
+                 derived: DerivedTables | None = None) -> None:
         self.plans = plans
+        self.derived = derived
+        #: derived-layer lines of the instances mapped so far (the loader takes them away)
+        self.derived_lines: list[str] = []
         self.section = section
         self.subject = subject
         self.defined = defined
@@ -212,7 +243,9 @@ class InstanceMapper:
 
     # -- instances ---------------------------------------------------------------
 
-    def _slots(self, s: str, slots: tuple[Slot, ...], params: list[Any], out: list[str]) -> None:
+    def _slots(self, s: str, slots: tuple[Slot, ...], params: list[Any], out: list[str],
+               derived: list[str] | None) -> None:
+        generic = self.derived.generic if derived is not None and self.derived is not None else {}
         for slot, value in zip(slots, params, strict=True):  # counts checked by _count
             if value is UNSET:
                 continue
@@ -231,10 +264,22 @@ class InstanceMapper:
                         raise Mismatch("P21-VALUE-TYPE", f"a SET cannot hold a member twice: {describe(value)}")
                     out.extend(f"{s} <{slot.prop}> {m} .\n" for m in members)
                 else:
-                    out.append(f"{s} <{slot.prop}> {self.encode(slot.encoding, value, out)} .\n")
+                    members = [self.encode(slot.encoding, value, out)]
+                    out.append(f"{s} <{slot.prop}> {members[0]} .\n")
+                if slot.prop in generic:
+                    self._generic(s, slot.prop, generic[slot.prop], members, derived)  # type: ignore[arg-type]
             except Mismatch as m:
                 raise Mismatch(m.code, f"{slot.entity}.{slot.name} (parameter {slot.index + 1}): {m.message}") \
                     from None
+
+    def _generic(self, s: str, prop: str, generic: str, members: list[str], derived: list[str]) -> None:
+        """Generic values (and the label) of one attribute, but no blank node: see DerivedTables."""
+        derived.extend(f"{s} <{generic}> {m} .\n" for m in members if m[0] != "_")
+        if prop in self.derived.labels:  # type: ignore[union-attr]
+            derived.extend(f"{s} {RDFS_LABEL} {m} .\n" for m in members if m[0] == '"' and m[1] != '"')
+
+    def _closure(self, s: str, cls: str, derived: list[str]) -> None:
+        derived.extend(f"{s} {T.RDF_TYPE} <{c}> .\n" for c in self.derived.superclasses.get(cls, ()))  # type: ignore[union-attr]
 
     def _count(self, name: str, slots: tuple[Slot, ...], params: list[Any]) -> None:
         if len(params) != len(slots):
@@ -256,12 +301,15 @@ class InstanceMapper:
             return
         lines: list[str] = []
         labels: list[tuple[str, Any]] = []
+        derived: list[str] | None = [] if self.derived is not None else None
         try:
             if inst.parts is None:
                 plan = self._plan(inst.name or "")
                 self._count(plan.name.upper(), plan.slots, inst.params)
                 lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
-                self._slots(s, plan.slots, inst.params, lines)
+                if derived is not None:
+                    self._closure(s, plan.cls, derived)
+                self._slots(s, plan.slots, inst.params, lines, derived)
                 if plan.its_id is not None:
                     labels.append((plan.slots[plan.its_id].entity, inst.params[plan.its_id]))
                 if plan.abstract:
@@ -271,7 +319,9 @@ class InstanceMapper:
                     plan = self._plan(name)
                     self._count(name, plan.own_slots, params)
                     lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
-                    self._slots(s, plan.own_slots, params, lines)
+                    if derived is not None:
+                        self._closure(s, plan.cls, derived)
+                    self._slots(s, plan.own_slots, params, lines, derived)
                     if plan.own_its_id is not None:
                         labels.append((plan.own_slots[plan.own_its_id].entity, params[plan.own_its_id]))
         except Mismatch as m:
@@ -288,6 +338,9 @@ class InstanceMapper:
         for scope, value in labels:
             self._label(scope, value, s)
         out.extend(lines)
+        if derived:
+            # a complex instance's partial classes share superclasses: each triple once
+            self.derived_lines.extend(derived if inst.parts is None else dict.fromkeys(derived))
         self._source(inst, s, out)
 
     def _source(self, inst: Instance, s: str, out: list[str]) -> None:
