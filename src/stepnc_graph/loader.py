@@ -140,7 +140,7 @@ class _Load:
     """
 
     def __init__(self, name: str, path: Path | None, raw: bytes, lenient: bool, graph: str,
-                 progress: Progress | None) -> None:
+                 progress: Progress | None, derived: bool = True) -> None:
         self.path = path
         self.name = name
         text, encoding = decode_source(raw, name)
@@ -155,9 +155,10 @@ class _Load:
         self.mapper = InstanceMapper(iso14649_plans(),
                                      lambda i: f"{prefix}i{i}", defined_ids(text),
                                      name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
-                                     iso14649_rules().tables())
+                                     iso14649_rules().tables() if derived else None)
         #: derived-layer triples the mapper wrote (None: none, see derive())
         self.derived_written: int | None = 0
+        self.derived = derived
         self.result = LoadResult(name, graph)
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
@@ -328,15 +329,20 @@ def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri
 
 
 def load_source(store: Store, source: Source, *, lenient: bool = False,
-                progress: Progress | None = None) -> LoadResult:
+                progress: Progress | None = None, derived: bool = True) -> LoadResult:
     """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input;
-    a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.jsonld_load`)."""
+    a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.jsonld_load`).
+
+    ``derived=False`` writes no derived layer: for a throw-away store that only
+    validation reads (shapes see the program graph alone)."""
     if source.path is not None and source.path.suffix.lower() == ".jsonld":
         from stepnc_graph.jsonld_load import JsonLdLoad
 
-        return _run(store, JsonLdLoad.of_source(source, progress))
+        job: _Load | JsonLdLoad = JsonLdLoad.of_source(source, progress)
+        job.derived = derived
+        return _run(store, job)
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
-    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress))
+    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived))
 
 
 def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
@@ -357,7 +363,8 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
             # a persistent store (on disk, or remote) always holds the vocabulary; a
             # throw-away one gets it when a query first needs it (query.execute)
             ensure_vocabulary(store)
-        job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written).triples
+        if job.derived:
+            job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written).triples
 
     store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))

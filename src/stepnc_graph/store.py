@@ -79,6 +79,13 @@ BATCH_CHARS = 12_000_000
 #: Oxigraph's streaming N-Triples reader stops at lines over 16 MiB, its
 #: in-memory one does not.
 DIRECT_CHARS = 8_000_000
+#: An in-memory store's bulk loader holds the GIL while it reads from a Python
+#: stream, so parse-and-map could not run beside it (a 100k-instance load took
+#: CPU = wall, 5.3-6.2 s); from bytes it releases the GIL. So an in-memory load
+#: gives one loader thread batches of this many characters as bytes (3.5-4.1 s,
+#: measured alternating in one run; two such threads contend: 4.8-5.2 s). On
+#: disk, streaming and bytes measured the same, and streaming keeps less text.
+MEMORY_BATCH_CHARS = 4_000_000
 #: measured costs per quad (µs) of deleting a graph's quads and of copying a
 #: quad into a rebuilt database; they choose how a graph is removed
 DELETE_COST, REBUILD_COST = 19.0, 10.0
@@ -640,11 +647,14 @@ class GraphStore:
         on halves of the data reach ~230k quads/s. So the producer (this
         thread: parse and map) fills a bounded queue and ``LOAD_THREADS``
         threads each run a streaming ``bulk_load`` over it (pyoxigraph releases
-        the GIL while loading). Chunks end at instance boundaries and blank-node
+        the GIL while loading; an in-memory store is fed differently, see
+        :data:`MEMORY_BATCH_CHARS`). Chunks end at instance boundaries and blank-node
         labels are unique per load, so every thread's document is self-contained.
         A :class:`Companion` chunk is loaded on its own into ``target(its graph)``.
         """
-        work: queue.Queue[Chunk | None] = queue.Queue(maxsize=2 * LOAD_THREADS)
+        in_memory = self.path is None
+        threads_n = 1 if in_memory else LOAD_THREADS  # see MEMORY_BATCH_CHARS
+        work: queue.Queue[Chunk | None] = queue.Queue(maxsize=2 * threads_n)
         errors: list[BaseException] = []
         main = ox.NamedNode(graph)
         finished = threading.Event()
@@ -671,8 +681,14 @@ class GraphStore:
             try:
                 while not finished.is_set():
                     large: list[Chunk] = []
-                    stream = io.BufferedReader(_ChunkStream(pull(BATCH_CHARS, large)), 1 << 20)
-                    self._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=main, lenient=True)
+                    if in_memory:
+                        text = "".join(pull(MEMORY_BATCH_CHARS, large))
+                        if text:
+                            self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=main,
+                                               lenient=True)
+                    else:
+                        stream = io.BufferedReader(_ChunkStream(pull(BATCH_CHARS, large)), 1 << 20)
+                        self._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=main, lenient=True)
                     for item in large:
                         into, text = ((ox.NamedNode(target(item.graph)), item.text) if isinstance(item, Companion)
                                       else (main, item))
@@ -684,7 +700,7 @@ class GraphStore:
                 while work.get() is not None:  # drain so the producer never blocks
                     pass
 
-        threads = [threading.Thread(target=worker, daemon=True) for _ in range(LOAD_THREADS)]
+        threads = [threading.Thread(target=worker, daemon=True) for _ in range(threads_n)]
         for t in threads:
             t.start()
         try:
