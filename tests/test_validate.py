@@ -171,3 +171,56 @@ def test_oneof_on_a_complex_instance(tmp_path: Path) -> None:
     theirs, mine = reference(program)
     assert mine == theirs
     assert any(key[0].endswith("/i400") and "oneof" in (key[4] or "") for key in mine)
+
+
+# -- checks the Part 21 mapping implies (stepnc_graph.validate.implied) -----------------------------
+
+
+def _implied_checks() -> list[Any]:
+    from stepnc_graph.validate import compile_shapes
+
+    return [c for c in compile_shapes(shape_files()).checks if c.implied is not None]
+
+
+@pytest.mark.parametrize("program", PROGRAMS, ids=lambda p: p.name)
+def test_checks_the_mapping_implies_find_nothing_on_what_it_wrote(program: Path) -> None:
+    """The cross-check: every check a file's validation skips, run anyway on every fixture (damaged
+    ones included) finds nothing; and the file's report equals the store's, which skips nothing."""
+    from stepnc_graph.validate.engine import run
+
+    implied = _implied_checks()
+    with api.open_store(memory=True) as store:
+        [loaded] = api.load(store, [program], lenient=True)
+        rows, ran = run(store.oxigraph, loaded.graph, implied)
+        assert ran > 0 and rows == []
+        from_store = validate(store, graphs=[loaded.graph])
+    from_file = validate([program], lenient=True)
+    assert from_file.checks_run < from_store.checks_run
+    def shapes_results(report: Any) -> list[dict[str, Any]]:  # loader diagnostics reach a store's report otherwise
+        return [r.asdict() for r in report.results if not r.component.startswith("loader:")]
+
+    assert shapes_results(from_file) == shapes_results(from_store)
+
+
+def test_what_the_mapping_implies_and_what_it_does_not() -> None:
+    implied = {(c.shape.rsplit("#", 1)[-1][:-1], c.constraint, c.argument): c.implied for c in _implied_checks()}
+    assert implied[("point.name", "maxCount", '"1"^^<http://www.w3.org/2001/XMLSchema#integer>')] == "always"
+    assert implied[("point.name", "datatype", "<http://www.w3.org/2001/XMLSchema#string>")] == "always"
+    members = [v for (shape, constraint, arg), v in implied.items()
+               if shape == "cartesian_point.coordinates" and constraint == "node"]
+    assert members == ["no-unset-members"]  # the member datatype; the list bounds are not implied
+    assert not any(c == "minCount" or c == "class" for _, c, _ in implied)  # $ and references: data decides
+    assert not any(shape == "manufacturing_feature.its_operations" for shape, _, _ in implied)  # a SET of refs
+
+
+def test_an_unset_list_member_is_still_checked(tmp_path: Path) -> None:
+    """A `$` inside a list is written p21:unset, which the members' datatype rejects: the file's
+    validation then runs the members checks too."""
+    text = (ROOT / "examples" / "shaft_two_setups.stp").read_text()
+    end = text.rindex("ENDSEC;")
+    program = tmp_path / "unset_member.stp"
+    program.write_text(text[:end] + "#400=CARTESIAN_POINT('P',(0.,$,1.));\n" + text[end:])
+    report = validate([program], lenient=True)
+    assert any(r.p21_id == 400 and r.path == "coordinates" for r in report.results), report.to_text()
+    theirs, mine = reference(program)
+    assert mine == theirs

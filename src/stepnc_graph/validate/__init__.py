@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 import time
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from functools import lru_cache
 from pathlib import Path
 
@@ -26,6 +26,7 @@ from stepnc_graph.naming import P21_NS
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.validate import compiled
 from stepnc_graph.validate.compiled import CompiledShapesWarning
+from stepnc_graph.validate import implied
 from stepnc_graph.validate.engine import Check, Row, run
 from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
@@ -154,9 +155,11 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
 
         paths = list(source)  # type: ignore[call-overload]
         with open_store(memory=True) as store:
-            loaded = load(store, paths, lenient=lenient)
+            loaded = load(store, paths, lenient=lenient, derived=False)  # shapes read the program graph only
             diagnostics = {r.graph: r.diagnostics for r in loaded}
-            report = _validate_store(store, [r.graph for r in loaded], shapes, list(checks), diagnostics)
+            # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
+            mapped = {r.graph for r in loaded if not r.path.lower().endswith(".jsonld")}
+            report = _validate_store(store, [r.graph for r in loaded], shapes, list(checks), diagnostics, mapped)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
 
@@ -167,8 +170,15 @@ def program_graphs(store: object) -> list[str]:
     return sorted(str(r[0].value) for r in rows)
 
 
+def _implied_skips(store: ox.Store, graph: str) -> frozenset[str]:
+    """What the Part 21 mapping guarantees in ``graph``, which it wrote (:mod:`.implied`)."""
+    unset_member = store.query(f"ASK {{ ?cell <{implied.RDF}first> <{P21_NS}unset> }}",
+                               default_graph=ox.NamedNode(graph))
+    return frozenset({implied.ALWAYS} | (set() if unset_member else {implied.NO_UNSET_MEMBERS}))
+
+
 def _validate_store(store: object, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
-                    diagnostics: dict[str, list[Diagnostic]]) -> ValidationReport:
+                    diagnostics: dict[str, list[Diagnostic]], mapped: Collection[str] = ()) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
     ran = 0
@@ -176,7 +186,7 @@ def _validate_store(store: object, graphs: Sequence[str] | None, shapes: Compile
     for graph in targets:
         if not oxstore.contains_named_graph(ox.NamedNode(graph)):
             raise ValueError(f"no graph {graph} in the store")
-        rows, n = run(oxstore, graph, checks)
+        rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, graph) if graph in mapped else frozenset())
         ran += n
         describer = _Describer(oxstore, graph, shapes)
         results += describer.results(rows)

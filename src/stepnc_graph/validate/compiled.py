@@ -26,7 +26,7 @@ from stepnc_graph.resources import sources_digest
 from stepnc_graph.validate.engine import Check, Compiler
 from stepnc_graph.validate.shapes import ShapesGraph
 
-FORMAT = 2  # 2: each check names the files that describe its results
+FORMAT = 3  # 2: each check names the files that describe its results; 3: its argument and what implies it
 CACHE_FILE = "compiled-checks.json"
 
 
@@ -45,10 +45,13 @@ def digest(named_texts: Sequence[tuple[str, bytes]]) -> str:
 
 def compile_texts(named_texts: Sequence[tuple[str, str]]) -> tuple[ShapesGraph, list[Check]]:
     """The shapes graph of Turtle documents, in order, and its checks."""
+    from stepnc_graph.mapping.plan import iso14649_plans
+    from stepnc_graph.validate.implied import mark
+
     graph = ShapesGraph()
     for position, (name, text) in enumerate(named_texts):
         graph.add_text(text, name, position)
-    return graph, Compiler(graph).checks()
+    return graph, mark(Compiler(graph).checks(), graph, iso14649_plans())
 
 
 class _ClassSets:
@@ -72,14 +75,16 @@ def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
         "path_term": check.path_term, "severity": check.severity, "query": check.query,
         "classes": sets.ref(check.classes), "closures": [sets.ref(c) for c in check.closures],
         "other_targets": list(check.other_targets), "parent": check.parent, "sparql_node": check.sparql_node,
-        "multi_typed_only": check.multi_typed_only, "files": list(check.files),
+        "multi_typed_only": check.multi_typed_only, "files": list(check.files), "argument": check.argument,
+        "implied": check.implied,
     }
 
 
 def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
     return Check(d["shape"], d["constraint"], d["component"], d["path"], d["path_term"], d["severity"], d["query"],
                  sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
-                 d["parent"], d["sparql_node"], bool(d["multi_typed_only"]), tuple(d["files"]))
+                 d["parent"], d["sparql_node"], bool(d["multi_typed_only"]), tuple(d["files"]), d["argument"],
+                 d["implied"])
 
 
 def dumps(names: Sequence[str], value: str, checks: Sequence[Check]) -> str:

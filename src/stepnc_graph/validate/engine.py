@@ -90,6 +90,10 @@ class Check:
     #: positions of the shape files that describe a result of this check (its shapes, the
     #: constraint's argument): describing reads only those
     files: tuple[int, ...] = ()
+    #: the constraint's argument (its sh:class, sh:maxCount ... object), None for sh:sparql
+    argument: str | None = None
+    #: when the Part 21 mapping guarantees the check (:mod:`.implied`), None when it does not
+    implied: str | None = None
 
 
 class Compiler:
@@ -147,10 +151,10 @@ class Compiler:
         path = self.path(path_term) if path_term is not None else None
 
         def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None,
-                 multi: bool = False) -> Check:
+                 multi: bool = False, argument: str | None = None) -> Check:
             return Check(shape, constraint, component or f"<{SH}{COMPONENT[constraint]}>", path, path_term,
                          severity, query, classes, closures, others, parent, sparql_node, multi,
-                         self.describing_files(shape, parent, constraint, sparql_node))
+                         self.describing_files(shape, parent, constraint, sparql_node), argument)
 
         value = "?value"
         values = f"?this {path} ?value ." if path is not None else "BIND(?this AS ?value)"
@@ -163,16 +167,19 @@ class Compiler:
                     patterns = self.witnesses(arg, value)
                     if patterns is not None:
                         for w in patterns:
-                            yield make(param, f"SELECT DISTINCT ?this ?value WHERE {{ {focus} {values} {w} }}")
+                            yield make(param, f"SELECT DISTINCT ?this ?value WHERE {{ {focus} {values} {w} }}",
+                                       argument=arg)
                         continue
                 ok = self.value_ok(param, arg, value, shape, path)
                 if param == "not" and path is None and not others and self.excluded_classes(arg, classes):
-                    yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", multi=True)
+                    yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", multi=True,
+                               argument=arg)
                     continue
                 if param == "hasValue" and path is not None:
-                    yield make(param, f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} {arg} }} }}")
+                    yield make(param, f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} {arg} }} }}",
+                               argument=arg)
                     continue
-                yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}")
+                yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", argument=arg)
         if path is not None:
             for arg in self.g.objects(shape, sh("minCount")):
                 n = int(literal_text(arg))
@@ -182,12 +189,12 @@ class Compiler:
                     q = (f"SELECT ?this WHERE {{ {{ SELECT ?this (COUNT(DISTINCT ?_v) AS ?_n) WHERE {{ {focus} "
                          f"OPTIONAL {{ ?this {path} ?_v }} }} GROUP BY ?this }} FILTER(?_n < {n}) }}")
                 if n > 0:
-                    yield make("minCount", q)
+                    yield make("minCount", q, argument=arg)
             for arg in self.g.objects(shape, sh("maxCount")):
                 n = int(literal_text(arg))
                 q = (f"SELECT ?this WHERE {{ {focus} ?this {path} ?_v }} GROUP BY ?this "
                      f"HAVING (COUNT(DISTINCT ?_v) > {n})")
-                yield make("maxCount", q)
+                yield make("maxCount", q, argument=arg)
         for node in self.g.objects(shape, sh("sparql")):
             if self.deactivated(node):
                 continue
@@ -467,8 +474,10 @@ def focus_pattern(check: Check, present: set[str]) -> str | None:
     return " UNION ".join(parts) if parts else None
 
 
-def run(store: ox.Store, graph: str, checks: list[Check]) -> tuple[list[Row], int]:
-    """Run the checks whose targets occur in ``graph``; the rows, and how many checks ran."""
+def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] = frozenset()) -> tuple[list[Row], int]:
+    """Run the checks whose targets occur in ``graph``; the rows, and how many checks ran.
+
+    Checks whose :attr:`Check.implied` is in ``skip`` are not run (see :mod:`.implied`)."""
     g = ox.NamedNode(graph)
     present = {str(s[0]) for s in store.query("SELECT DISTINCT ?t WHERE { ?s a ?t }", default_graph=g)}  # type: ignore[union-attr]
     # a node with two types that a class target can reach: not the file node (p21:ExchangeStructure, prov:Entity)
@@ -479,7 +488,7 @@ def run(store: ox.Store, graph: str, checks: list[Check]) -> tuple[list[Row], in
     ran = 0
     for check in checks:
         focus = focus_pattern(check, present)
-        if focus is None or (check.multi_typed_only and not multi_typed):
+        if focus is None or (check.multi_typed_only and not multi_typed) or check.implied in skip:
             continue
         ran += 1
         results = store.query(check.query.replace(FOCUS, focus), default_graph=g)

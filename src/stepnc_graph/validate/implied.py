@@ -1,0 +1,88 @@
+"""Checks that the Part 21 mapping already guarantees, so a program it just wrote can skip them.
+
+The loader's mapper (:mod:`stepnc_graph.mapping.mapper`) writes an attribute's
+value only in the form of the attribute's type: one triple for a single-valued
+attribute, an ``xsd:double`` for a REAL, an ``xsd:string`` for a STRING, list
+members in the form of the member type; a value that does not fit makes the
+whole instance a raw one (reported by the loader). So on a program graph the
+mapper wrote, some generated constraints cannot fail (ISO 10303-11 types, as
+SHACL shapes by :mod:`stepnc_graph.generators.shacl`):
+
+* ``sh:maxCount`` n >= 1 on a single-valued attribute (not a SET);
+* ``sh:datatype`` on an attribute of a simple type whose form is that datatype;
+* ``sh:node`` of a list-members shape (only ``sh:datatype`` on
+  ``rdf:rest*/rdf:first``) on a LIST of such a simple type -- unless a list
+  holds an unset member (``$``, written ``p21:unset``), which the validator
+  asks once per graph (:data:`NO_UNSET_MEMBERS`).
+
+At 100k instances these are about half the validator's time (most of it the
+coordinates of the cartesian points). They are skipped only for graphs that
+``validate`` loaded itself from Part 21 text, never for a store (whose graphs
+another writer may have changed) or a JSON-LD file. Cross-checked: a test runs
+every skipped check on every fixture, damaged ones included, and requires that
+none finds anything (``tests/test_validate.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import defaultdict
+from collections.abc import Sequence
+
+from stepnc_graph.mapping.plan import Plans, Slot
+from stepnc_graph.validate.engine import Check
+from stepnc_graph.validate.shapes import RDF_TYPE, ShapesGraph, literal_text, sh
+
+XSD = "http://www.w3.org/2001/XMLSchema#"
+RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
+#: the check cannot fail on a graph the mapper wrote
+ALWAYS = "always"
+#: ... nor when no list of that graph holds an unset member
+NO_UNSET_MEMBERS = "no-unset-members"
+#: the datatype of the literal the mapper writes for each simple encoding
+KIND_DATATYPE = {"real": f"<{XSD}double>", "string": f"<{XSD}string>", "integer": f"<{XSD}integer>",
+                 "boolean": f"<{XSD}boolean>"}
+
+
+def mark(checks: Sequence[Check], graph: ShapesGraph, plans: Plans) -> list[Check]:
+    """``checks`` with :attr:`Check.implied` set where the mapping guarantees them."""
+    slots: dict[str, list[Slot]] = defaultdict(list)
+    for plan in plans.entities.values():
+        for slot in (*plan.slots, *plan.own_slots):
+            slots[f"<{slot.prop}>"].append(slot)
+    return [dataclasses.replace(c, implied=_implied(c, graph, slots.get(c.path_term or "", []))) for c in checks]
+
+
+def _implied(check: Check, graph: ShapesGraph, slots: list[Slot]) -> str | None:
+    if not slots or check.argument is None:
+        return None
+    if check.constraint == "maxCount":
+        return ALWAYS if int(literal_text(check.argument)) >= 1 and not any(s.repeated for s in slots) else None
+    if check.constraint == "datatype":
+        return ALWAYS if all(KIND_DATATYPE.get(s.encoding.kind) == check.argument for s in slots) else None
+    if check.constraint == "node":
+        member = _members_datatype(graph, check.argument)
+        fits = member is not None and all(
+            s.encoding.kind == "list" and not s.repeated and s.encoding.element is not None
+            and KIND_DATATYPE.get(s.encoding.element.kind) == member for s in slots)
+        return NO_UNSET_MEMBERS if fits else None
+    return None
+
+
+def _members_datatype(graph: ShapesGraph, shape: str) -> str | None:
+    """The datatype of a list-members shape: one property shape on ``rdf:rest*/rdf:first`` with
+    ``sh:datatype`` only; None for any other shape."""
+    props = graph.objects(shape, sh("property"))
+    if len(props) != 1 or set(graph.predicates(shape)) - {RDF_TYPE, sh("property")}:
+        return None
+    member = props[0]
+    if set(graph.predicates(member)) - {RDF_TYPE, sh("path"), sh("datatype")}:
+        return None
+    path, datatype = graph.value(member, sh("path")), graph.value(member, sh("datatype"))
+    if path is None or datatype is None or not path.startswith("_:"):
+        return None
+    steps = graph.items(path)
+    if len(steps) != 2 or steps[1] != f"<{RDF}first>":
+        return None
+    zero_or_more = graph.objects(steps[0], sh("zeroOrMorePath"))
+    return datatype if zero_or_more == [f"<{RDF}rest>"] and len(graph.predicates(steps[0])) == 1 else None
