@@ -81,6 +81,9 @@ class LoadResult:
     derived_triples: int = 0
     seconds: float = 0.0
     diagnostics: list[Diagnostic] = field(default_factory=list)
+    #: the Part 21 mapper wrote the graph and saw every list within its bounds (see
+    #: :mod:`stepnc_graph.validate.implied`); False for a JSON-LD load
+    lists_within_bounds: bool = field(default=False, repr=False)
 
     def asdict(self) -> dict[str, Any]:
         return {
@@ -189,6 +192,7 @@ class _Load:
         out.extend(self.duplicates())
         result.triples += len(out)
         result.raw = self.mapper.raw_count
+        result.lists_within_bounds = self.mapper.lists_within_bounds
         result.unreadable = len(self.mapper.unreadable)
         result.defined = self.reader.defined
         meta = self.metadata()

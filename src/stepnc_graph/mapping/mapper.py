@@ -155,6 +155,9 @@ class InstanceMapper:
         #: check against unreadable instances once the whole file is read
         self.raw_refs: list[tuple[int, int, int, list[int]]] = []
         self._bnode = 0
+        #: whether every list mapped so far has a length within its type's bounds (which the
+        #: mapper does not enforce: the shapes report it); lets validation skip those checks
+        self.lists_within_bounds = True
         #: (declaring entity, its_id) -> the one instance IRI with that label, or
         #: None when several instances share it (then it identifies nothing).
         self.labels: dict[tuple[str, str], str | None] = {}
@@ -188,6 +191,9 @@ class InstanceMapper:
                 return T.integer(value)
         elif kind == "list":
             if vt is list:
+                n = len(value)
+                if enc.lower is None or n < enc.lower or (enc.upper is not None and n > enc.upper):
+                    self.lists_within_bounds = False  # reported by the shapes; an expression bound: unknown
                 return self._list(enc.element, value, out)  # type: ignore[arg-type]
         elif kind == "enum":
             if vt is Enum and value in enc.items:

@@ -76,7 +76,7 @@ def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
         "classes": sets.ref(check.classes), "closures": [sets.ref(c) for c in check.closures],
         "other_targets": list(check.other_targets), "parent": check.parent, "sparql_node": check.sparql_node,
         "multi_typed_only": check.multi_typed_only, "files": list(check.files), "argument": check.argument,
-        "implied": check.implied,
+        "implied": check.implied, "excludes": sets.ref(check.excludes),
     }
 
 
@@ -84,7 +84,7 @@ def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
     return Check(d["shape"], d["constraint"], d["component"], d["path"], d["path_term"], d["severity"], d["query"],
                  sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
                  d["parent"], d["sparql_node"], bool(d["multi_typed_only"]), tuple(d["files"]), d["argument"],
-                 d["implied"])
+                 d["implied"], sets[d["excludes"]])
 
 
 def dumps(names: Sequence[str], value: str, checks: Sequence[Check]) -> str:

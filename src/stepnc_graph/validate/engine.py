@@ -85,7 +85,8 @@ class Check:
     other_targets: tuple[str, ...] = ()  # patterns binding ?this for the other kinds of target
     parent: str | None = None  # the node shape holding a property shape
     sparql_node: str | None = None  # the sh:sparql node (for its message)
-    #: can fail only on a node with two rdf:types (sh:not of classes disjoint from the targets: ONEOF)
+    #: sh:not of classes (ONEOF): can fail only on a node with two rdf:types, or on a node of one of
+    #: the target classes in ``excludes`` (a class below both sides, e.g. vertex_point)
     multi_typed_only: bool = False
     #: positions of the shape files that describe a result of this check (its shapes, the
     #: constraint's argument): describing reads only those
@@ -94,6 +95,8 @@ class Check:
     argument: str | None = None
     #: when the Part 21 mapping guarantees the check (:mod:`.implied`), None when it does not
     implied: str | None = None
+    #: see ``multi_typed_only``
+    excludes: frozenset[str] = field(default=frozenset())
 
 
 class Compiler:
@@ -151,10 +154,10 @@ class Compiler:
         path = self.path(path_term) if path_term is not None else None
 
         def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None,
-                 multi: bool = False, argument: str | None = None) -> Check:
+                 multi: bool = False, argument: str | None = None, excludes: frozenset[str] = frozenset()) -> Check:
             return Check(shape, constraint, component or f"<{SH}{COMPONENT[constraint]}>", path, path_term,
                          severity, query, classes, closures, others, parent, sparql_node, multi,
-                         self.describing_files(shape, parent, constraint, sparql_node), argument)
+                         self.describing_files(shape, parent, constraint, sparql_node), argument, None, excludes)
 
         value = "?value"
         values = f"?this {path} ?value ." if path is not None else "BIND(?this AS ?value)"
@@ -171,9 +174,10 @@ class Compiler:
                                        argument=arg)
                         continue
                 ok = self.value_ok(param, arg, value, shape, path)
-                if param == "not" and path is None and not others and self.excluded_classes(arg, classes):
+                excluded = self.excluded_classes(arg) if param == "not" and path is None and not others else None
+                if excluded is not None and classes:
                     yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", multi=True,
-                               argument=arg)
+                               argument=arg, excludes=excluded & classes)
                     continue
                 if param == "hasValue" and path is not None:
                     yield make(param, f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} {arg} }} }}",
@@ -209,23 +213,26 @@ class Compiler:
         nodes = [shape, parent, sparql_node, *self.g.objects(shape, sh(constraint))]
         return tuple(sorted({self.g.origin[n] for n in nodes if n is not None and n in self.g.origin}))
 
-    def excluded_classes(self, shape: str, targets: frozenset[str]) -> bool:
-        """``shape`` is ``sh:class`` or ``sh:or`` of ``sh:class`` only, over classes disjoint from ``targets``.
+    def excluded_classes(self, shape: str) -> frozenset[str] | None:
+        """When ``shape`` is ``sh:class`` or ``sh:or`` of ``sh:class`` only: every class it admits
+        (subclasses included); None for any other shape.
 
-        Then ``sh:not shape`` on a target node fails only if that node has a
-        second type: with one rdf:type per node the check cannot fail.
+        Then ``sh:not shape`` on a node with one rdf:type fails only if that
+        type is one of them: a graph whose nodes have one type each, none of
+        them admitted, needs no query (:func:`run`).
         """
         alternatives = [shape]
         ors = self.g.objects(shape, sh("or"))
         if ors:
             alternatives = self.g.items(ors[0])
-        for alt in [shape] if not ors else alternatives:
-            preds = set(self.g.predicates(alt)) - {RDF_TYPE}
-            if preds != {sh("class")} or self.g.closure(self.g.objects(alt, sh("class"))[0]) & targets:
-                return False
-        if ors and set(self.g.predicates(shape)) - {RDF_TYPE} != {sh("or")}:
-            return False
-        return bool(targets)
+            if set(self.g.predicates(shape)) - {RDF_TYPE} != {sh("or")}:
+                return None
+        admitted: set[str] = set()
+        for alt in alternatives:
+            if set(self.g.predicates(alt)) - {RDF_TYPE} != {sh("class")}:
+                return None
+            admitted |= self.g.closure(self.g.objects(alt, sh("class"))[0])
+        return frozenset(admitted)
 
     def check_known(self, shape: str) -> None:
         for p in self.g.predicates(shape):
@@ -488,7 +495,8 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
     ran = 0
     for check in checks:
         focus = focus_pattern(check, present)
-        if focus is None or (check.multi_typed_only and not multi_typed) or check.implied in skip:
+        if focus is None or check.implied in skip or (
+                check.multi_typed_only and not multi_typed and not check.excludes & present):
             continue
         ran += 1
         results = store.query(check.query.replace(FOCUS, focus), default_graph=g)

@@ -13,7 +13,12 @@ SHACL shapes by :mod:`stepnc_graph.generators.shacl`):
 * ``sh:node`` of a list-members shape (only ``sh:datatype`` on
   ``rdf:rest*/rdf:first``) on a LIST of such a simple type -- unless a list
   holds an unset member (``$``, written ``p21:unset``), which the validator
-  asks once per graph (:data:`NO_UNSET_MEMBERS`).
+  asks once per graph (:data:`NO_UNSET_MEMBERS`);
+* ``sh:node`` of a list-length shape (``ListMax3``: no value at
+  ``rdf:rest/rdf:rest/rdf:rest/rdf:first``) that the attribute's declared
+  bounds imply -- when the mapper saw every list of the file within its
+  bounds (it counts them, :attr:`~stepnc_graph.loader.LoadResult.lists_within_bounds`;
+  it does not refuse them: the shapes report them) (:data:`LIST_BOUNDS`).
 
 At 100k instances these are about half the validator's time (most of it the
 coordinates of the cartesian points). They are skipped only for graphs that
@@ -35,10 +40,13 @@ from stepnc_graph.validate.shapes import RDF_TYPE, ShapesGraph, literal_text, sh
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
+RDFS_COMMENT = "<http://www.w3.org/2000/01/rdf-schema#comment>"
 #: the check cannot fail on a graph the mapper wrote
 ALWAYS = "always"
 #: ... nor when no list of that graph holds an unset member
 NO_UNSET_MEMBERS = "no-unset-members"
+#: ... nor when the mapper saw every list within its type's bounds
+LIST_BOUNDS = "list-bounds"
 #: the datatype of the literal the mapper writes for each simple encoding
 KIND_DATATYPE = {"real": f"<{XSD}double>", "string": f"<{XSD}string>", "integer": f"<{XSD}integer>",
                  "boolean": f"<{XSD}boolean>"}
@@ -61,11 +69,40 @@ def _implied(check: Check, graph: ShapesGraph, slots: list[Slot]) -> str | None:
     if check.constraint == "datatype":
         return ALWAYS if all(KIND_DATATYPE.get(s.encoding.kind) == check.argument for s in slots) else None
     if check.constraint == "node":
+        if not all(s.encoding.kind == "list" and not s.repeated and s.encoding.element is not None for s in slots):
+            return None
         member = _members_datatype(graph, check.argument)
-        fits = member is not None and all(
-            s.encoding.kind == "list" and not s.repeated and s.encoding.element is not None
-            and KIND_DATATYPE.get(s.encoding.element.kind) == member for s in slots)
-        return NO_UNSET_MEMBERS if fits else None
+        if member is not None:
+            fits = all(KIND_DATATYPE.get(s.encoding.element.kind) == member for s in slots)  # type: ignore[union-attr]
+            return NO_UNSET_MEMBERS if fits else None
+        bound = _length_bound(graph, check.argument)
+        if bound is not None:
+            kind, n = bound
+            held = [s.encoding.upper if kind == "max" else s.encoding.lower for s in slots]
+            fits = all(h is not None and (h <= n if kind == "max" else h >= n) for h in held)
+            return LIST_BOUNDS if fits else None
+    return None
+
+
+def _length_bound(graph: ShapesGraph, shape: str) -> tuple[str, int] | None:
+    """("max", n) for a shape allowing lists of at most n members (no value at rest{n}/first), ("min", n)
+    for at least n (a value at rest{n-1}/first); None for any other shape."""
+    props = graph.objects(shape, sh("property"))
+    if len(props) != 1 or set(graph.predicates(shape)) - {RDF_TYPE, sh("property"), RDFS_COMMENT}:
+        return None
+    member = props[0]
+    counts = set(graph.predicates(member)) - {RDF_TYPE, sh("path")}
+    path = graph.value(member, sh("path"))
+    if path is None or len(counts) != 1:
+        return None
+    steps = graph.items(path) if path.startswith("_:") else [path]
+    if steps[-1] != f"<{RDF}first>" or any(step != f"<{RDF}rest>" for step in steps[:-1]):
+        return None
+    rests = len(steps) - 1
+    if counts == {sh("maxCount")} and literal_text(graph.value(member, sh("maxCount")) or "") == "0":
+        return "max", rests
+    if counts == {sh("minCount")} and literal_text(graph.value(member, sh("minCount")) or "") == "1":
+        return "min", rests + 1
     return None
 
 
