@@ -84,6 +84,8 @@ class LoadResult:
     #: the Part 21 mapper wrote the graph and saw every list within its bounds (see
     #: :mod:`stepnc_graph.validate.implied`); False for a JSON-LD load
     lists_within_bounds: bool = field(default=False, repr=False)
+    #: ... and saw a value for every mandatory attribute (no ``$`` or ``*`` there)
+    mandatory_values_set: bool = field(default=False, repr=False)
 
     def asdict(self) -> dict[str, Any]:
         return {
@@ -193,6 +195,7 @@ class _Load:
         result.triples += len(out)
         result.raw = self.mapper.raw_count
         result.lists_within_bounds = self.mapper.lists_within_bounds
+        result.mandatory_values_set = self.mapper.mandatory_values_set
         result.unreadable = len(self.mapper.unreadable)
         result.defined = self.reader.defined
         meta = self.metadata()

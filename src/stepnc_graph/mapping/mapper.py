@@ -158,6 +158,8 @@ class InstanceMapper:
         #: whether every list mapped so far has a length within its type's bounds (which the
         #: mapper does not enforce: the shapes report it); lets validation skip those checks
         self.lists_within_bounds = True
+        #: whether no mandatory attribute mapped so far was left unset ($) or derived (*)
+        self.mandatory_values_set = True
         #: (declaring entity, its_id) -> the one instance IRI with that label, or
         #: None when several instances share it (then it identifies nothing).
         self.labels: dict[tuple[str, str], str | None] = {}
@@ -254,8 +256,12 @@ class InstanceMapper:
         generic = self.derived.generic if derived is not None and self.derived is not None else {}
         for slot, value in zip(slots, params, strict=True):  # counts checked by _count
             if value is UNSET:
+                if not slot.optional:
+                    self.mandatory_values_set = False  # reported by the shapes (sh:minCount)
                 continue
             if value is DERIVED:
+                if not slot.optional:
+                    self.mandatory_values_set = False
                 out.append(f"{s} {P21_DERIVED} <{slot.prop}> .\n")
                 continue
             try:

@@ -19,17 +19,20 @@ import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pyoxigraph as ox
 
 from stepnc_graph.naming import P21_NS
 from stepnc_graph.part21.diagnostics import Diagnostic
-from stepnc_graph.validate import compiled
+from stepnc_graph.validate import compiled, implied
 from stepnc_graph.validate.compiled import CompiledShapesWarning
-from stepnc_graph.validate import implied
 from stepnc_graph.validate.engine import Check, Row, run
 from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
+
+if TYPE_CHECKING:  # the loader is imported only when a file is validated
+    from stepnc_graph.loader import LoadResult
 
 __all__ = ["CompiledShapes", "CompiledShapesWarning", "Result", "ShapesError", "ValidationReport", "shape_files", "validate"]
 
@@ -158,7 +161,7 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
             loaded = load(store, paths, lenient=lenient, derived=False)  # shapes read the program graph only
             diagnostics = {r.graph: r.diagnostics for r in loaded}
             # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
-            mapped = {r.graph: r.lists_within_bounds for r in loaded if not r.path.lower().endswith(".jsonld")}
+            mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
             report = _validate_store(store, [r.graph for r in loaded], shapes, list(checks), diagnostics, mapped)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
@@ -170,16 +173,17 @@ def program_graphs(store: object) -> list[str]:
     return sorted(str(r[0].value) for r in rows)
 
 
-def _implied_skips(store: ox.Store, graph: str, lists_within_bounds: bool) -> frozenset[str]:
-    """What the Part 21 mapping guarantees in ``graph``, which it wrote (:mod:`.implied`)."""
+def _implied_skips(store: ox.Store, loaded: LoadResult) -> frozenset[str]:
+    """What the Part 21 mapping guarantees in the graph it wrote (:mod:`.implied`)."""
     unset_member = store.query(f"ASK {{ ?cell <{implied.RDF}first> <{P21_NS}unset> }}",
-                               default_graph=ox.NamedNode(graph))
+                               default_graph=ox.NamedNode(loaded.graph))
     return frozenset({implied.ALWAYS} | (set() if unset_member else {implied.NO_UNSET_MEMBERS})
-                     | ({implied.LIST_BOUNDS} if lists_within_bounds else set()))
+                     | ({implied.LIST_BOUNDS} if loaded.lists_within_bounds else set())
+                     | ({implied.MANDATORY_SET} if loaded.mandatory_values_set else set()))
 
 
 def _validate_store(store: object, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
-                    diagnostics: dict[str, list[Diagnostic]], mapped: Mapping[str, bool] | None = None) -> ValidationReport:
+                    diagnostics: dict[str, list[Diagnostic]], mapped: Mapping[str, LoadResult] | None = None) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
     ran = 0
@@ -187,7 +191,7 @@ def _validate_store(store: object, graphs: Sequence[str] | None, shapes: Compile
     for graph in targets:
         if not oxstore.contains_named_graph(ox.NamedNode(graph)):
             raise ValueError(f"no graph {graph} in the store")
-        skip = _implied_skips(oxstore, graph, mapped[graph]) if mapped and graph in mapped else frozenset()
+        skip = _implied_skips(oxstore, mapped[graph]) if mapped and graph in mapped else frozenset()
         rows, n = run(oxstore, graph, checks, skip)
         ran += n
         describer = _Describer(oxstore, graph, shapes)

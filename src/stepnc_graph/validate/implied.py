@@ -18,7 +18,10 @@ SHACL shapes by :mod:`stepnc_graph.generators.shacl`):
   ``rdf:rest/rdf:rest/rdf:rest/rdf:first``) that the attribute's declared
   bounds imply -- when the mapper saw every list of the file within its
   bounds (it counts them, :attr:`~stepnc_graph.loader.LoadResult.lists_within_bounds`;
-  it does not refuse them: the shapes report them) (:data:`LIST_BOUNDS`).
+  it does not refuse them: the shapes report them) (:data:`LIST_BOUNDS`);
+* ``sh:minCount 1`` on a mandatory single-valued attribute -- when the
+  mapper saw no ``$`` or ``*`` for a mandatory attribute in the file
+  (:attr:`~stepnc_graph.loader.LoadResult.mandatory_values_set`) (:data:`MANDATORY_SET`).
 
 At 100k instances these are about half the validator's time (most of it the
 coordinates of the cartesian points). They are skipped only for graphs that
@@ -47,6 +50,8 @@ ALWAYS = "always"
 NO_UNSET_MEMBERS = "no-unset-members"
 #: ... nor when the mapper saw every list within its type's bounds
 LIST_BOUNDS = "list-bounds"
+#: ... nor when the mapper saw a value for every mandatory attribute
+MANDATORY_SET = "mandatory-set"
 #: the datatype of the literal the mapper writes for each simple encoding
 KIND_DATATYPE = {"real": f"<{XSD}double>", "string": f"<{XSD}string>", "integer": f"<{XSD}integer>",
                  "boolean": f"<{XSD}boolean>"}
@@ -66,6 +71,9 @@ def _implied(check: Check, graph: ShapesGraph, slots: list[Slot]) -> str | None:
         return None
     if check.constraint == "maxCount":
         return ALWAYS if int(literal_text(check.argument)) >= 1 and not any(s.repeated for s in slots) else None
+    if check.constraint == "minCount":
+        one = int(literal_text(check.argument)) == 1
+        return MANDATORY_SET if one and not any(s.optional or s.repeated or s.derived for s in slots) else None
     if check.constraint == "datatype":
         return ALWAYS if all(KIND_DATATYPE.get(s.encoding.kind) == check.argument for s in slots) else None
     if check.constraint == "node":
