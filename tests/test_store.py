@@ -72,6 +72,20 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
         assert r.graphs() == sorted(graphs[1:])
 
 
+def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path) -> None:
+    """Deleted quads hold their space until RocksDB compacts them: an unload compacts."""
+    big = generated(tmp_path, 5_000)
+    with sg.open_store(tmp_path / "s") as s:
+        graphs = [f"urn:copy:{k}" for k in range(3)]
+        for g in graphs:
+            sg.load(s, [big], base_iri=g)
+        loaded = disk_bytes(tmp_path / "s" / s.generation)
+        assert sg.unload(s, graphs[0]) and s.last_removal == "delete"
+        # the published database readers open (work/ also keeps RocksDB's write-ahead log of the
+        # deletes until its next write)
+        assert disk_bytes(tmp_path / "s" / s.generation) < loaded * 0.85
+
+
 @pytest.mark.parametrize("others", [0, 3], ids=["rebuild", "delete"])
 def test_a_failed_replace_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                      others: int) -> None:

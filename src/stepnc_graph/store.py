@@ -32,9 +32,10 @@ point, leaves ``CURRENT`` naming the previous generation; the next writer sees
 transactions, about 19 µs a quad here, where a bulk load of a named graph takes
 about 8 µs and copying the rest of the store into a fresh database about 10 µs
 (measured on 1.16M quads). So removing a graph either deletes its quads in
-bounded batches (flat memory), or -- when the graph is a large part of the
-store -- rebuilds the database from the other graphs, which also gives its disk
-space back at once; whichever costs less by those figures.
+bounded batches (flat memory) and then compacts the database (an unload gives
+the space back; a replacement refills it), or -- when the graph is a large part
+of the store -- rebuilds the database from the other graphs, which also gives
+its disk space back at once; whichever costs less by those figures.
 
 An in-memory store (``path=None``) loads a new graph in place (dropping it on
 failure) and a replacement into staging graphs moved into place in one SPARQL
@@ -592,6 +593,11 @@ class GraphStore:
         self._begin()
         try:
             self._drop([graph, *companions])
+            if self.last_removal == "delete":
+                # Deleted quads keep their disk space until RocksDB compacts them: give it back
+                # now (measured, 100k instances beside 3 others: 2,306 MB after the deletes,
+                # 1,175 MB after this, which costs 7 s against the deletes' 36 s)
+                self._db.optimize()
             self._commit()
         except BaseException:
             self._rollback()
