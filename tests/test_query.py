@@ -284,6 +284,7 @@ def test_ask_and_construct(store: GraphStore) -> None:
 
 def test_result_formats_are_the_standard_ones(store: GraphStore) -> None:
     result = sg.query(store, "setup-sheet", graph=SHAFT)
+    assert result._terms is None  # the JSON formats need no Python terms: parsed on first use
     for fmt, kind in (("json", ox.QueryResultsFormat.JSON), ("tsv", ox.QueryResultsFormat.TSV)):
         parsed = ox.parse_query_results(result.serialize(fmt), format=kind)
         assert isinstance(parsed, ox.QuerySolutions)
