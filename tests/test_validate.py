@@ -270,3 +270,28 @@ def test_an_unset_mandatory_attribute_is_still_checked(tmp_path: Path) -> None:
     assert [(r.p21_id, r.path) for r in report.results if r.p21_id == 400] == [(400, "name")], report.to_text()
     theirs, mine = reference(program)
     assert mine == theirs
+
+
+def test_large_input_is_validated_in_a_temporary_store_on_disk(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Above MEMORY_VALIDATION_BYTES the throw-away store is on disk (bounded memory at 1M instances):
+    the same report, and nothing left behind."""
+    import importlib
+    import tempfile
+
+    module = importlib.import_module("stepnc_graph.validate")
+    program = VFIX / "fail_plan.stp"
+    in_memory = validate([program])
+    monkeypatch.setattr(module, "MEMORY_VALIDATION_BYTES", 0)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    opened: list[Any] = []
+    real = api.open_store
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        opened.append((args, kwargs))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(api, "open_store", spy)
+    on_disk = validate([program])
+    assert opened and not opened[0][1].get("memory") and str(opened[0][0][0]).startswith(str(tmp_path))
+    assert [r.asdict() for r in on_disk.results] == [r.asdict() for r in in_memory.results]
+    assert list(tmp_path.iterdir()) == []

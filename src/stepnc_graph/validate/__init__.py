@@ -14,12 +14,14 @@ the files loaded here are results too (severity Violation).
 from __future__ import annotations
 
 import re
+import tempfile
 import time
 import warnings
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
@@ -154,10 +156,10 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
         with source.local_copy(targets) as copy:
             report = _validate_store(copy, targets, shapes, list(checks), {})
     else:
-        from stepnc_graph.api import load, open_store
+        from stepnc_graph.api import load
 
         paths = list(source)  # type: ignore[call-overload]
-        with open_store(memory=True) as store:
+        with _throwaway_store(paths) as store:
             loaded = load(store, paths, lenient=lenient, derived=False)  # shapes read the program graph only
             diagnostics = {r.graph: r.diagnostics for r in loaded}
             # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
@@ -165,6 +167,38 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
             report = _validate_store(store, [r.graph for r in loaded], shapes, list(checks), diagnostics, mapped)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
+
+
+#: Input above this size is validated in a temporary on-disk store instead of memory: Oxigraph's
+#: in-memory store holds about 70 bytes of RAM per byte of Part 21 (measured: 1M instances, 63 MB,
+#: peaked at 4.4 GB), its on-disk store keeps a bounded cache. Below it, memory is faster (100k
+#: instances, 6 MB: 3.6 s against 5.7 s to load).
+MEMORY_VALIDATION_BYTES = 16_000_000
+
+
+def _input_bytes(paths: Sequence[str | Path]) -> int:
+    """The size of the files to validate (a directory's Part 21 files; standard input counts 0)."""
+    total = 0
+    for p in map(Path, paths):
+        if p.is_file():
+            total += p.stat().st_size
+        elif p.is_dir():
+            total += sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
+    return total
+
+
+@contextmanager
+def _throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
+    """An in-memory store for the files ``paths``, or a temporary on-disk one when they are large."""
+    from stepnc_graph.api import open_store
+
+    if _input_bytes(paths) <= MEMORY_VALIDATION_BYTES:
+        with open_store(memory=True) as store:
+            yield store
+        return
+    with tempfile.TemporaryDirectory(prefix="stepnc-graph-validate-") as tmp:
+        with open_store(Path(tmp) / "store") as store:
+            yield store
 
 
 def program_graphs(store: object) -> list[str]:
