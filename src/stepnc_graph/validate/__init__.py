@@ -159,7 +159,7 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
         from stepnc_graph.api import load
 
         paths = list(source)  # type: ignore[call-overload]
-        with _throwaway_store(paths) as store:
+        with throwaway_store(paths) as store:
             loaded = load(store, paths, lenient=lenient, derived=False)  # shapes read the program graph only
             diagnostics = {r.graph: r.diagnostics for r in loaded}
             # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
@@ -188,7 +188,7 @@ def _input_bytes(paths: Sequence[str | Path]) -> int:
 
 
 @contextmanager
-def _throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
+def throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
     """An in-memory store for the files ``paths``, or a temporary on-disk one when they are large."""
     from stepnc_graph.api import open_store
 
