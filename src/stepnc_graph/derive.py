@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING
 import pyoxigraph as ox
 
 from stepnc_graph.mapping.mapper import DerivedTables
+from stepnc_graph.mapping.terms import RDFS_LABEL
 from stepnc_graph.naming import (
     ANALYSIS_NS,
     P21_NS,
@@ -72,7 +73,6 @@ RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
 RDF_TYPE = f"<{RDF_NS}type>"
 RDF_FIRST = ox.NamedNode(RDF_NS + "first")
 RDF_REST = ox.NamedNode(RDF_NS + "rest")
-RDFS_LABEL = "<http://www.w3.org/2000/01/rdf-schema#label>"
 XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
 
 #: Program structures whose members run in a given order (a LIST) or in no

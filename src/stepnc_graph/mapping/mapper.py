@@ -100,9 +100,6 @@ def _refs(inst: Instance) -> list[int]:
     return found
 
 
-RDFS_LABEL = "<http://www.w3.org/2000/01/rdf-schema#label>"
-
-
 @dataclass(frozen=True)
 class DerivedTables:
     """What the mapper writes into a file's derived layer while it maps (:mod:`stepnc_graph.derive`).
@@ -253,7 +250,7 @@ class InstanceMapper:
 
     def _slots(self, s: str, slots: tuple[Slot, ...], params: list[Any], out: list[str],
                derived: list[str] | None) -> None:
-        generic = self.derived.generic if derived is not None and self.derived is not None else {}
+        generic = self.derived.generic if self.derived is not None and derived is not None else {}
         for slot, value in zip(slots, params, strict=True):  # counts checked by _count
             if value is UNSET:
                 if not slot.optional:
@@ -275,11 +272,13 @@ class InstanceMapper:
                         # repeated triples would merge them: report instead of losing one
                         raise Mismatch("P21-VALUE-TYPE", f"a SET cannot hold a member twice: {describe(value)}")
                     out.extend(f"{s} <{slot.prop}> {m} .\n" for m in members)
+                    if slot.prop in generic:
+                        self._generic(s, slot.prop, generic[slot.prop], members, derived)  # type: ignore[arg-type]
                 else:
-                    members = [self.encode(slot.encoding, value, out)]
-                    out.append(f"{s} <{slot.prop}> {members[0]} .\n")
-                if slot.prop in generic:
-                    self._generic(s, slot.prop, generic[slot.prop], members, derived)  # type: ignore[arg-type]
+                    term = self.encode(slot.encoding, value, out)
+                    out.append(f"{s} <{slot.prop}> {term} .\n")
+                    if slot.prop in generic:
+                        self._generic(s, slot.prop, generic[slot.prop], [term], derived)  # type: ignore[arg-type]
             except Mismatch as m:
                 raise Mismatch(m.code, f"{slot.entity}.{slot.name} (parameter {slot.index + 1}): {m.message}") \
                     from None
@@ -288,7 +287,7 @@ class InstanceMapper:
         """Generic values (and the label) of one attribute, but no blank node: see DerivedTables."""
         derived.extend(f"{s} <{generic}> {m} .\n" for m in members if m[0] != "_")
         if prop in self.derived.labels:  # type: ignore[union-attr]
-            derived.extend(f"{s} {RDFS_LABEL} {m} .\n" for m in members if m[0] == '"' and m[1] != '"')
+            derived.extend(f"{s} {T.RDFS_LABEL} {m} .\n" for m in members if m[0] == '"' and m[1] != '"')
 
     def _closure(self, s: str, cls: str, derived: list[str]) -> None:
         derived.extend(f"{s} {T.RDF_TYPE} <{c}> .\n" for c in self.derived.superclasses.get(cls, ()))  # type: ignore[union-attr]

@@ -27,11 +27,11 @@ import pyoxigraph as ox
 
 from stepnc_graph.naming import P21_NS
 from stepnc_graph.part21.diagnostics import Diagnostic
-from stepnc_graph.validate import compiled, implied
+from stepnc_graph.validate import compiled
 from stepnc_graph.validate.compiled import CompiledShapesWarning
 from stepnc_graph.validate.engine import Check, Row, run
 from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
-from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
+from stepnc_graph.validate.shapes import RDF_FIRST, RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
     from stepnc_graph.loader import LoadResult
@@ -177,14 +177,10 @@ MEMORY_VALIDATION_BYTES = 16_000_000
 
 
 def _input_bytes(paths: Sequence[str | Path]) -> int:
-    """The size of the files to validate (a directory's Part 21 files; standard input counts 0)."""
-    total = 0
-    for p in map(Path, paths):
-        if p.is_file():
-            total += p.stat().st_size
-        elif p.is_dir():
-            total += sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
-    return total
+    """The size of the files to validate, as the load will find them (standard input counts 0)."""
+    from stepnc_graph.sources import plan_sources
+
+    return sum(s.path.stat().st_size for s in plan_sources(list(paths)) if s.path is not None)
 
 
 @contextmanager
@@ -209,7 +205,10 @@ def program_graphs(store: object) -> list[str]:
 
 def _implied_skips(store: ox.Store, loaded: LoadResult) -> frozenset[str]:
     """What the Part 21 mapping guarantees in the graph it wrote (:mod:`.implied`)."""
-    unset_member = store.query(f"ASK {{ ?cell <{implied.RDF}first> <{P21_NS}unset> }}",
+    from stepnc_graph.mapping.plan import P21_UNSET
+    from stepnc_graph.validate import implied
+
+    unset_member = store.query(f"ASK {{ ?cell {RDF_FIRST} {P21_UNSET} }}",
                                default_graph=ox.NamedNode(loaded.graph))
     return frozenset({implied.ALWAYS} | (set() if unset_member else {implied.NO_UNSET_MEMBERS})
                      | ({implied.LIST_BOUNDS} if loaded.lists_within_bounds else set())

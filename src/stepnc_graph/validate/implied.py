@@ -37,13 +37,12 @@ import dataclasses
 from collections import defaultdict
 from collections.abc import Sequence
 
+from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.plan import Plans, Slot
 from stepnc_graph.validate.engine import Check
-from stepnc_graph.validate.shapes import RDF_TYPE, ShapesGraph, literal_text, sh
+from stepnc_graph.validate.shapes import RDF_FIRST, RDF_REST, RDF_TYPE, RDFS, ShapesGraph, literal_text, sh
 
-XSD = "http://www.w3.org/2001/XMLSchema#"
-RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
-RDFS_COMMENT = "<http://www.w3.org/2000/01/rdf-schema#comment>"
+RDFS_COMMENT = f"<{RDFS}comment>"
 #: the check cannot fail on a graph the mapper wrote
 ALWAYS = "always"
 #: ... nor when no list of that graph holds an unset member
@@ -53,8 +52,7 @@ LIST_BOUNDS = "list-bounds"
 #: ... nor when the mapper saw a value for every mandatory attribute
 MANDATORY_SET = "mandatory-set"
 #: the datatype of the literal the mapper writes for each simple encoding
-KIND_DATATYPE = {"real": f"<{XSD}double>", "string": f"<{XSD}string>", "integer": f"<{XSD}integer>",
-                 "boolean": f"<{XSD}boolean>"}
+KIND_DATATYPE = {"real": T.T_DOUBLE, "string": f"<{T.XSD}string>", "integer": T.T_INTEGER, "boolean": T.T_BOOLEAN}
 
 
 def mark(checks: Sequence[Check], graph: ShapesGraph, plans: Plans) -> list[Check]:
@@ -104,7 +102,7 @@ def _length_bound(graph: ShapesGraph, shape: str) -> tuple[str, int] | None:
     if path is None or len(counts) != 1:
         return None
     steps = graph.items(path) if path.startswith("_:") else [path]
-    if steps[-1] != f"<{RDF}first>" or any(step != f"<{RDF}rest>" for step in steps[:-1]):
+    if steps[-1] != RDF_FIRST or any(step != RDF_REST for step in steps[:-1]):
         return None
     rests = len(steps) - 1
     if counts == {sh("maxCount")} and literal_text(graph.value(member, sh("maxCount")) or "") == "0":
@@ -127,7 +125,7 @@ def _members_datatype(graph: ShapesGraph, shape: str) -> str | None:
     if path is None or datatype is None or not path.startswith("_:"):
         return None
     steps = graph.items(path)
-    if len(steps) != 2 or steps[1] != f"<{RDF}first>":
+    if len(steps) != 2 or steps[1] != RDF_FIRST:
         return None
     zero_or_more = graph.objects(steps[0], sh("zeroOrMorePath"))
-    return datatype if zero_or_more == [f"<{RDF}rest>"] and len(graph.predicates(steps[0])) == 1 else None
+    return datatype if zero_or_more == [RDF_REST] and len(graph.predicates(steps[0])) == 1 else None
