@@ -61,7 +61,8 @@ def open_store(path: str | Path | None = None, memory: bool = False, *, readonly
 
 
 def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
-         progress: Progress | None = None, replace: bool = False, derived: bool = True) -> list[LoadResult]:
+         progress: Progress | None = None, replace: bool = False, derived: bool = True,
+         positions: bool = True) -> list[LoadResult]:
     """Load each file (a directory: every Part 21 file under it; ``-``: standard input)
     into its own named graph, replacing an earlier load of the same file.
 
@@ -71,12 +72,14 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
     before anything is written. A file that does not parse in strict mode raises
     Part21SyntaxError; files before it stay loaded, the store is unchanged for it.
     ``derived=False`` leaves out the derived query layer (:mod:`stepnc_graph.derive`):
-    for a throw-away store that only :func:`validate` reads.
+    for a throw-away store that only :func:`validate` reads; so is ``positions=False``
+    (Part 21 files: no ``p21:id``/``p21:line`` triples, the lines in ``LoadResult.lines``).
     """
     sources = plan_sources(list(paths), base_iri)
     if not replace:
         refuse_replacing_other_files(store, sources)
-    return [load_source(store, s, lenient=lenient, progress=progress, derived=derived) for s in sources]
+    return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions)
+            for s in sources]
 
 
 def unload(store: Store, graph: str) -> bool:

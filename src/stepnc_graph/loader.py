@@ -30,6 +30,7 @@ from stepnc_graph.naming import (
     alias_iri,
     default_graph_iri,
     derived_graph_iri,
+    instance_id,
     instance_prefix,
     section_iri,
 )
@@ -86,6 +87,9 @@ class LoadResult:
     lists_within_bounds: bool = field(default=False, repr=False)
     #: ... and saw a value for every mandatory attribute (no ``$`` or ``*`` there)
     mandatory_values_set: bool = field(default=False, repr=False)
+    #: each instance's line by #id, for a load that wrote no ``p21:id``/``p21:line``
+    #: triples (``positions=False``); None otherwise
+    lines: dict[int, int] | None = field(default=None, repr=False)
 
     def asdict(self) -> dict[str, Any]:
         return {
@@ -145,7 +149,7 @@ class _Load:
     """
 
     def __init__(self, name: str, path: Path | None, raw: bytes, lenient: bool, graph: str,
-                 progress: Progress | None, derived: bool = True) -> None:
+                 progress: Progress | None, derived: bool = True, positions: bool = True) -> None:
         self.path = path
         self.name = name
         text, encoding = decode_source(raw, name)
@@ -160,7 +164,8 @@ class _Load:
         self.mapper = InstanceMapper(iso14649_plans(),
                                      lambda i: f"{prefix}i{i}", defined_ids(text),
                                      name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
-                                     iso14649_rules().tables() if derived else None)
+                                     iso14649_rules().tables() if derived else None,
+                                     None if positions else {})
         #: derived-layer triples the mapper wrote (None: none, see derive())
         self.derived_written: int | None = 0
         self.derived = derived
@@ -196,6 +201,7 @@ class _Load:
         result.raw = self.mapper.raw_count
         result.lists_within_bounds = self.mapper.lists_within_bounds
         result.mandatory_values_set = self.mapper.mandatory_values_set
+        result.lines = self.mapper.positions
         result.unreadable = len(self.mapper.unreadable)
         result.defined = self.reader.defined
         meta = self.metadata()
@@ -297,18 +303,24 @@ class _Load:
             found.update((line, column, p21_id, target) for target in refs if target in unreadable)
         prefix = instance_prefix(self.graph)
         targets = " ".join(f"(<{prefix}i{t}> {t})" for t in sorted(unreadable))
+        positions = self.mapper.positions  # None: the graph holds p21:id and p21:line
+        owner = "?owner p21:id ?id ; p21:line ?line ." if positions is None else "FILTER(isIRI(?owner))"
         # From each unreadable instance back to the instances referring to it, directly or
         # through the blank nodes of lists and typed values (SPARQL: it runs on any store).
         rows = store.query(f"""
             PREFIX rdf: <{T.RDF}> PREFIX p21: <{P21_NS}>
-            SELECT DISTINCT ?id ?line ?n WHERE {{ GRAPH {ox.NamedNode(where)} {{
+            SELECT DISTINCT ?owner ?id ?line ?n WHERE {{ GRAPH {ox.NamedNode(where)} {{
               VALUES (?target ?n) {{ {targets} }}
               {{ ?owner ?p ?target }} UNION {{
                 ?cell rdf:first|p21:value ?target .
                 ?cell (^rdf:rest|^rdf:first|^p21:value)* ?head .
                 ?owner ?p ?head . FILTER(!isBlank(?owner)) }}
-              ?owner p21:id ?id ; p21:line ?line . }} }}""")
-        found.update((int(row["line"].value), 1, int(row["id"].value), int(row["n"].value)) for row in rows)
+              {owner} }} }}""")
+        for row in rows:
+            if positions is None:
+                found.add((int(row["line"].value), 1, int(row["id"].value), int(row["n"].value)))
+            elif (ident := instance_id(self.graph, row["owner"].value)) is not None and ident in positions:
+                found.add((positions[ident], 1, ident, int(row["n"].value)))
         return [Diagnostic.make("P21-UNRESOLVED-REF", self.name, line, column, p21_id,
                                 f"refers to #{target}, which could not be read (see its syntax error)")
                 for line, column, p21_id, target in sorted(found)]
@@ -336,12 +348,14 @@ def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri
 
 
 def load_source(store: Store, source: Source, *, lenient: bool = False,
-                progress: Progress | None = None, derived: bool = True) -> LoadResult:
+                progress: Progress | None = None, derived: bool = True, positions: bool = True) -> LoadResult:
     """Load one planned input (:func:`stepnc_graph.sources.plan_sources`): a file or standard input;
     a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.jsonld_load`).
 
     ``derived=False`` writes no derived layer: for a throw-away store that only
-    validation reads (shapes see the program graph alone)."""
+    validation reads (shapes see the program graph alone). ``positions=False``
+    (Part 21 only) writes no ``p21:id``/``p21:line`` triples and returns the lines
+    in :attr:`LoadResult.lines` instead, for the same use."""
     if source.path is not None and source.path.suffix.lower() == ".jsonld":
         from stepnc_graph.jsonld_load import JsonLdLoad
 
@@ -349,7 +363,7 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
         job.derived = derived
         return _run(store, job)
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
-    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived))
+    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived, positions))
 
 
 def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:

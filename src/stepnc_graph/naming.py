@@ -143,6 +143,13 @@ def instance_iri(graph_iri: str, p21_id: int) -> str:
     return f"{instance_prefix(graph_iri)}i{p21_id}"
 
 
+def instance_id(graph_iri: str, iri: str) -> int | None:
+    """The #id of an instance IRI of ``graph_iri`` (the inverse of :func:`instance_iri`), else None."""
+    head = instance_prefix(graph_iri) + "i"
+    digits = iri[len(head):] if iri.startswith(head) else ""
+    return int(digits) if digits.isdigit() and digits.isascii() else None
+
+
 def derived_graph_iri(graph_iri: str) -> str:
     """The named graph that holds the derived (query) layer of a loaded file's graph.
 

@@ -32,9 +32,12 @@ raises :class:`ShapesError` rather than being skipped silently.
 from __future__ import annotations
 
 import itertools
+import os
 import re
+from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import pyoxigraph as ox
 
@@ -481,33 +484,45 @@ def focus_pattern(check: Check, present: set[str]) -> str | None:
     return " UNION ".join(parts) if parts else None
 
 
+#: Checks run on this many threads: Oxigraph evaluates a query without the GIL, so two cores
+#: run two checks at once (measured, 118 checks on 100k instances in memory: 0.59 s on one
+#: thread, 0.35 s on two; results identical).
+CHECK_THREADS = max(1, min(4, os.cpu_count() or 1))
+
+
 def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] = frozenset()) -> tuple[list[Row], int]:
     """Run the checks whose targets occur in ``graph``; the rows, and how many checks ran.
 
-    Checks whose :attr:`Check.implied` is in ``skip`` are not run (see :mod:`.implied`)."""
+    Checks whose :attr:`Check.implied` is in ``skip`` are not run (see :mod:`.implied`).
+    They run on :data:`CHECK_THREADS` threads; the rows come in the order of ``checks``
+    whatever the threads' timing."""
     g = ox.NamedNode(graph)
     present = {str(s[0]) for s in store.query("SELECT DISTINCT ?t WHERE { ?s a ?t }", default_graph=g)}  # type: ignore[union-attr]
     # a node with two types that a class target can reach: not the file node (p21:ExchangeStructure, prov:Entity)
     multi_typed = bool(store.query(f"ASK {{ ?s a ?t1 , ?t2 FILTER(!sameTerm(?t1, ?t2)) "
                                    f"FILTER NOT EXISTS {{ ?s a <{P21_NS}ExchangeStructure> }} }}", default_graph=g))
-    rows: list[Row] = []
-    seen: set[tuple[str, str, str, str]] = set()
-    ran = 0
+    todo: list[tuple[Check, str]] = []
     for check in checks:
         focus = focus_pattern(check, present)
         if focus is None or check.implied in skip or (
                 check.multi_typed_only and not multi_typed and not check.excludes & present):
             continue
-        ran += 1
-        results = store.query(check.query.replace(FOCUS, focus), default_graph=g)
+        todo.append((check, check.query.replace(FOCUS, focus)))
+
+    def evaluate(item: tuple[Check, str]) -> list[tuple[Any, Any]]:
+        results = store.query(item[1], default_graph=g)
         has_value = any(v.value == "value" for v in results.variables)  # type: ignore[union-attr]
-        for solution in results:  # type: ignore[union-attr]
-            focus_node = solution["this"]
-            if focus_node is None:
-                continue
-            value = solution["value"] if has_value else None
+        return [(s["this"], s["value"] if has_value else None)
+                for s in results if s["this"] is not None]  # type: ignore[union-attr]
+
+    with ThreadPoolExecutor(CHECK_THREADS) as pool:
+        found = list(pool.map(evaluate, todo))
+    rows: list[Row] = []
+    seen: set[tuple[str, str, str, str]] = set()
+    for (check, _), solutions in zip(todo, found, strict=True):
+        for focus_node, value in solutions:
             key = (check.shape, check.constraint, str(focus_node), str(value))
             if key not in seen:  # a nested shape's ways to fail can match the same value twice
                 seen.add(key)
                 rows.append(Row(check, focus_node, value))
-    return rows, ran
+    return rows, len(todo)
