@@ -6,6 +6,7 @@ import json
 import sys
 from pathlib import Path
 
+import pyoxigraph as ox
 import pytest
 
 import stepnc_graph as sg
@@ -61,15 +62,25 @@ def test_unloading_the_only_program_rebuilds_and_gives_the_space_back(tmp_path: 
 
 
 def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(store_module, "DELETE_BATCH", 100)  # several batches on a small graph
+    """Deletes by IRI subjects, then the blank nodes' quads predicate by predicate, in several
+    batches each: the graph and its derived layer go, a blank node no IRI leads to too, and
+    nothing of the other programs."""
+    monkeypatch.setattr(store_module, "DELETE_SUBJECTS", 7)  # several batches on a small graph
+    monkeypatch.setattr(store_module, "DELETE_BATCH", 5)
     with sg.open_store(tmp_path / "s") as s:
         graphs = copies(s, 4)
         counts = {g: s.count(g) for g in graphs}
-        assert sg.unload(s, graphs[0]) and s.last_removal == "delete"
-        assert {g: s.count(g) for g in graphs[1:]} == {g: counts[g] for g in graphs[1:]}
-        assert not s.has_graph(graphs[0])
+        lone = ox.NamedNode(graphs[1])
+        for k in range(5):
+            s.oxigraph.add(ox.Quad(ox.BlankNode(), ox.NamedNode("urn:p"), ox.Literal(str(k)), lone))
+        for g in graphs[:2]:
+            blank = sum(isinstance(q.subject, ox.BlankNode) for name in (g, g + "/derived") for q in s.quads(name))
+            assert blank > 2 * store_module.DELETE_BATCH
+            assert sg.unload(s, g) and s.last_removal == "delete" and s.swept == blank
+            assert not s.has_graph(g) and s.count(g) == s.count(g + "/derived") == 0
+            assert {h: s.count(h) for h in graphs[2:]} == {h: counts[h] for h in graphs[2:]}
     with sg.open_store(tmp_path / "s", readonly=True) as r:
-        assert r.graphs() == sorted(graphs[1:])
+        assert r.graphs() == sorted(graphs[2:])
 
 
 def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path) -> None:
