@@ -29,15 +29,15 @@ point, leaves ``CURRENT`` naming the previous generation; the next writer sees
 ``work.dirty`` and rebuilds ``work/`` from that generation (hard links again).
 
 **Unload and replace, as close to the cost of a load as Oxigraph allows.** Oxigraph
-deletes quad by quad in transactions, about 13-19 µs a quad here (two threads: about
-9), where a bulk load of a named graph takes about 8 µs and copying the rest of the
-store into a fresh database about 10 µs (measured on 1.16M quads). So removing a
-graph either deletes its quads in bounded batches (flat memory, see
-:meth:`GraphStore._delete_in_batches`) and then compacts the database (an unload
-gives the space back; a replacement refills it), or -- when the graph is a large
-part of the store -- rebuilds the database from the other graphs, which also gives
-its disk space back at once; whichever costs less by those figures. Beside other
-programs an unload still costs about three loads of the same program (deletes,
+deletes quad by quad in transactions, about 13-19 µs of CPU a quad in a store of 3M
+quads (25 in one of 4.6M), where a bulk load of a named graph takes about 8 µs and
+copying the rest of the store into a fresh database about 10 µs (measured on 1.16M
+quads). So removing a graph either deletes its quads in bounded batches (flat
+memory, see :meth:`GraphStore._delete_in_batches`) and then compacts the database
+(an unload gives the space back; a replacement refills it), or -- when the graph is
+a large part of the store -- rebuilds the database from the other graphs, which also
+gives its disk space back at once; whichever costs less by those figures. Beside
+other programs an unload still costs two to three loads of the same program (deletes,
 then a compaction of the whole database).
 
 An in-memory store (``path=None``) loads a new graph in place (dropping it on
