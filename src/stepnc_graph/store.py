@@ -51,7 +51,6 @@ from __future__ import annotations
 import fcntl
 import gc
 import io
-import itertools
 import json
 import os
 import queue
@@ -653,7 +652,6 @@ class GraphStore:
         listed = list(subjects)
         batches = [" ".join(listed[i:i + DELETE_SUBJECTS]) for i in range(0, len(listed), DELETE_SUBJECTS)]
         del subjects, listed
-        every = " ".join(f"GRAPH {n} {{ ?s ?p ?o }}" for n in nodes)
 
         def by_subjects(values: str) -> None:
             self._db.update(" ; ".join(f"DELETE {{ GRAPH {n} {{ ?s ?p ?o }} }} WHERE {{ VALUES ?s {{ {values} }} "
@@ -670,7 +668,7 @@ class GraphStore:
             list(pool.map(by_predicate, sorted(blank, key=lambda b: -b[2])))  # the largest first: balanced threads
         self.swept = sum(b[2] for b in blank)
         for node in nodes:
-            self._db.remove_graph(node)  # anything left (none but a quad written meanwhile), and the name
+            self._db.remove_graph(node)  # the name, and any quad the two passes did not meet
 
     def _rebuild_without(self, dropped: set[str]) -> None:
         """Replace ``work/`` by a fresh database holding every graph but ``dropped``."""
