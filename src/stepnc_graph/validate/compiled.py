@@ -26,7 +26,8 @@ from stepnc_graph.resources import sources_digest
 from stepnc_graph.validate.engine import Check, Compiler
 from stepnc_graph.validate.shapes import ShapesGraph
 
-FORMAT = 3  # 2: each check names the files that describe its results; 3: its argument and what implies it
+FORMAT = 4  # 2: each check names the files that describe its results; 3: its argument and what implies it;
+# 4: "excludes" null for a check that always runs (was a flag "multi_typed_only" beside it)
 CACHE_FILE = "compiled-checks.json"
 
 
@@ -75,16 +76,16 @@ def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
         "path_term": check.path_term, "severity": check.severity, "query": check.query,
         "classes": sets.ref(check.classes), "closures": [sets.ref(c) for c in check.closures],
         "other_targets": list(check.other_targets), "parent": check.parent, "sparql_node": check.sparql_node,
-        "multi_typed_only": check.multi_typed_only, "files": list(check.files), "argument": check.argument,
-        "implied": check.implied, "excludes": sets.ref(check.excludes),
+        "files": list(check.files), "argument": check.argument, "implied": check.implied,
+        "excludes": None if check.excludes is None else sets.ref(check.excludes),
     }
 
 
 def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
     return Check(d["shape"], d["constraint"], d["component"], d["path"], d["path_term"], d["severity"], d["query"],
                  sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
-                 d["parent"], d["sparql_node"], bool(d["multi_typed_only"]), tuple(d["files"]), d["argument"],
-                 d["implied"], sets[d["excludes"]])
+                 d["parent"], d["sparql_node"], tuple(d["files"]), d["argument"], d["implied"],
+                 None if d["excludes"] is None else sets[d["excludes"]])
 
 
 def dumps(names: Sequence[str], value: str, checks: Sequence[Check]) -> str:

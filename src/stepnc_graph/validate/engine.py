@@ -88,9 +88,6 @@ class Check:
     other_targets: tuple[str, ...] = ()  # patterns binding ?this for the other kinds of target
     parent: str | None = None  # the node shape holding a property shape
     sparql_node: str | None = None  # the sh:sparql node (for its message)
-    #: sh:not of classes (ONEOF): can fail only on a node with two rdf:types, or on a node of one of
-    #: the target classes in ``excludes`` (a class below both sides, e.g. vertex_point)
-    multi_typed_only: bool = False
     #: positions of the shape files that describe a result of this check (its shapes, the
     #: constraint's argument): describing reads only those
     files: tuple[int, ...] = ()
@@ -98,8 +95,10 @@ class Check:
     argument: str | None = None
     #: when the Part 21 mapping guarantees the check (:mod:`.implied`), None when it does not
     implied: str | None = None
-    #: see ``multi_typed_only``
-    excludes: frozenset[str] = field(default=frozenset())
+    #: an sh:not of classes (ONEOF) can fail only on a node with two rdf:types, or on a node of one
+    #: of the target classes listed here (a class below both sides, e.g. vertex_point): the check
+    #: runs only then. None: a check that always runs
+    excludes: frozenset[str] | None = None
 
 
 class Compiler:
@@ -157,9 +156,9 @@ class Compiler:
         path = self.path(path_term) if path_term is not None else None
 
         def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None,
-                 multi: bool = False, argument: str | None = None, excludes: frozenset[str] = frozenset()) -> Check:
+                 argument: str | None = None, excludes: frozenset[str] | None = None) -> Check:
             return Check(shape, constraint, component or f"<{SH}{COMPONENT[constraint]}>", path, path_term,
-                         severity, query, classes, closures, others, parent, sparql_node, multi,
+                         severity, query, classes, closures, others, parent, sparql_node,
                          self.describing_files(shape, parent, constraint, sparql_node), argument, None, excludes)
 
         value = "?value"
@@ -179,7 +178,7 @@ class Compiler:
                 ok = self.value_ok(param, arg, value, shape, path)
                 excluded = self.excluded_classes(arg) if param == "not" and path is None and not others else None
                 if excluded is not None and classes:
-                    yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", multi=True,
+                    yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}",
                                argument=arg, excludes=excluded & classes)
                     continue
                 if param == "hasValue" and path is not None:
@@ -505,7 +504,7 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
     for check in checks:
         focus = focus_pattern(check, present)
         if focus is None or check.implied in skip or (
-                check.multi_typed_only and not multi_typed and not check.excludes & present):
+                check.excludes is not None and not multi_typed and not check.excludes & present):
             continue
         todo.append((check, check.query.replace(FOCUS, focus)))
 
