@@ -76,7 +76,7 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
         for g in graphs[:2]:
             blank = sum(isinstance(q.subject, ox.BlankNode) for name in (g, g + "/derived") for q in s.quads(name))
             assert blank > 2 * store_module.DELETE_BATCH
-            assert sg.unload(s, g) and s.last_removal == "delete" and s.swept == blank
+            assert sg.unload(s, g) and s.last_removal == "delete" and s.blank_quads_deleted == blank
             assert not s.has_graph(g) and s.count(g) == s.count(g + "/derived") == 0
             assert {h: s.count(h) for h in graphs[2:]} == {h: counts[h] for h in graphs[2:]}
     with sg.open_store(tmp_path / "s", readonly=True) as r:

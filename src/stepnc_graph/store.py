@@ -268,7 +268,7 @@ class GraphStore:
         #: how the last graph removal was done on disk: "delete" or "rebuild" (for tests and benchmarks)
         self.last_removal: str | None = None
         #: quads with a blank subject in the last graphs deleted by batches (see _delete_in_batches)
-        self.swept = 0
+        self.blank_quads_deleted = 0
         if self.path is None:
             self._store = ox.Store()
             return
@@ -637,8 +637,8 @@ class GraphStore:
         subjects on two threads; a bulk load 7.2). So the IRI subjects are listed up front and
         deleted :data:`DELETE_SUBJECTS` at a time; the quads of blank nodes (list cells, typed
         values), which SPARQL cannot name, then go predicate by predicate, where a scan only
-        meets the tombstones of its own predicate. Counted up front: :attr:`swept` is how many
-        quads that second pass deleted.
+        meets the tombstones of its own predicate. Counted up front: :attr:`blank_quads_deleted` is
+        how many quads that second pass deleted.
         """
         nodes = [ox.NamedNode(g) for g in graphs]
         subjects: dict[str, None] = {}
@@ -666,7 +666,7 @@ class GraphStore:
         with ThreadPoolExecutor(LOAD_THREADS) as pool:
             list(pool.map(by_subjects, batches))
             list(pool.map(by_predicate, sorted(blank, key=lambda b: -b[2])))  # the largest first: balanced threads
-        self.swept = sum(b[2] for b in blank)
+        self.blank_quads_deleted = sum(b[2] for b in blank)
         for node in nodes:
             self._db.remove_graph(node)  # the name, and any quad the two passes did not meet
 

@@ -237,10 +237,10 @@ def _validate_store(store: object, graphs: Sequence[str] | None, shapes: Compile
     for graph in targets:
         if not oxstore.contains_named_graph(ox.NamedNode(graph)):
             raise ValueError(f"no graph {graph} in the store")
-        skip = _implied_skips(oxstore, mapped[graph]) if mapped and graph in mapped else frozenset()
-        rows, n = run(oxstore, graph, checks, skip)
+        loaded = mapped.get(graph) if mapped else None  # written by this call's Part 21 mapping
+        rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, loaded) if loaded else frozenset())
         ran += n
-        describer = _Describer(oxstore, graph, shapes, mapped[graph].lines if mapped and graph in mapped else None)
+        describer = _Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
         results += describer.results(rows)
         if graph in diagnostics:
             results += [_diagnostic_result(graph, d) for d in diagnostics[graph] if d.code not in COVERED_BY_SHAPES]
