@@ -269,6 +269,7 @@ class GraphStore:
         self.last_removal: str | None = None
         #: quads with a blank subject in the last graphs deleted by batches (see _delete_in_batches)
         self.blank_quads_deleted = 0
+        self._deletes_logged = False  # work/'s write-ahead log holds batched deletes (see _commit)
         if self.path is None:
             self._store = ox.Store()
             return
@@ -476,6 +477,23 @@ class GraphStore:
             return
         self._publish()
         self._collect()
+        if self._deletes_logged:
+            self._drop_write_ahead_log()
+
+    def _drop_write_ahead_log(self) -> None:
+        """Reopen ``work/`` so that RocksDB deletes the write-ahead log of batched deletes.
+
+        The log holds every tombstone written (about 390 bytes a deleted quad: 530 MB for a
+        100k-instance program) and RocksDB keeps it after the memtables are flushed, until the
+        database is opened again (measured: a store of 1,200 MB of tables kept a 530 MB log
+        after the unload's process ended). Reopening a 4M-quad store takes about 0.2 s. Skipped
+        when someone else still holds the database (``store.oxigraph``): the next open drops it.
+        """
+        self._deletes_logged = False
+        if sys.getrefcount(self._store) > 2:  # the attribute and the call's argument
+            return
+        self._close_db()
+        self._store = ox.Store(str(self._file("work")))
 
     def _rollback(self) -> None:
         """Back to the published generation (the writer's lock is still held).
@@ -486,6 +504,7 @@ class GraphStore:
         """
         if self.path is None:
             return
+        self._deletes_logged = False  # work/ is rebuilt from the published generation
         old, self._store = self._store, None
         # Called while an exception propagates. If anything still references the database (a
         # frame of that exception's traceback, typically after Ctrl-C, or a caller's
@@ -667,6 +686,7 @@ class GraphStore:
             list(pool.map(by_subjects, batches))
             list(pool.map(by_predicate, sorted(blank, key=lambda b: -b[2])))  # the largest first: balanced threads
         self.blank_quads_deleted = sum(b[2] for b in blank)
+        self._deletes_logged = True
         for node in nodes:
             self._db.remove_graph(node)  # the name, and any quad the two passes did not meet
 
