@@ -194,10 +194,15 @@ def test_load_standard_input(tmp_path: Path) -> None:
 # -- P3.13: readers never create, --memory only where it means something ------------------------------
 
 
-def test_readers_never_create_a_store(tmp_path: Path) -> None:
+def test_only_load_creates_a_store(tmp_path: Path) -> None:
     typo = tmp_path / "mistyped"
     assert_clean_error(run("info", "--store", str(typo)), "no store at")
     assert_clean_error(run("export", "--store", str(typo), "--format", "nq"), "no store at")
+    assert_clean_error(run("unload", "--store", str(typo), "urn:x"), "no store at")
+    assert_clean_error(run("compact", "--store", str(typo)), "no store at")
+    mapping = tmp_path / "ids.csv"
+    mapping.write_text("p21_id,identifier\n1,X\n")
+    assert_clean_error(run("link", str(mapping), "--store", str(typo)), "no store at")
     assert not typo.exists()
 
 

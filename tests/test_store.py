@@ -98,6 +98,60 @@ def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path) ->
         assert s.count(graphs[1]) == s.count(graphs[2]) > 0  # the reopened database is the one in use
 
 
+def test_compact_gives_back_what_an_unload_beside_others_leaves(tmp_path: Path) -> None:
+    """An unload's compaction keeps the strings only the removed program used (here its instance
+    IRIs); `compact` rebuilds the database from its graphs: smaller on disk, the same quads, blank
+    nodes included, and a reader that opened before still reads its generation."""
+    big = generated(tmp_path, 5_000)
+    with sg.open_store(tmp_path / "s") as s:
+        graphs = [f"urn:copy:{k}" for k in range(3)]
+        for g in graphs:
+            sg.load(s, [big], base_iri=g)
+        assert sg.unload(s, graphs[0]) and s.last_removal == "delete"
+        before = quads(s)
+        unloaded = s.disk_bytes()
+        seen: list[tuple[int, int]] = []
+        result = sg.compact(s, lambda done, total: seen.append((done, total)))
+        assert quads(s) == before and result.quads == len(before) == s.count()
+        assert result.before == unloaded and max(result.after, s.disk_bytes()) < unloaded * 0.9
+        assert seen and seen[-1] == (len(before), len(before))
+        with sg.open_store(tmp_path / "s", readonly=True) as reader:
+            sg.compact(s)
+            assert quads(reader) == before  # the generation it opened is still there
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        assert quads(r) == before and r.graphs() == sorted(graphs[1:])
+
+
+def test_a_failed_compact_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(store_module, "REBUILD_BATCH", 100)  # several calls a graph
+    with sg.open_store(tmp_path / "s") as s:
+        copies(s, 2)
+        before = quads(s)
+
+        def failing(done: int, total: int) -> None:
+            if done > 300:
+                raise RuntimeError("disk full (injected)")
+
+        with pytest.raises(RuntimeError, match="injected"):
+            sg.compact(s, failing)
+        assert quads(s) == before
+        assert sg.compact(s).quads == len(before) and quads(s) == before  # and it can be compacted after
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        assert quads(r) == before
+
+
+def test_compact_needs_a_store_directory() -> None:
+    """A SPARQL endpoint manages its own storage (nothing is sent to it); an in-memory store has no
+    disk space to give back."""
+    from stepnc_graph.remote import Endpoint, RemoteStore
+
+    with pytest.raises(StoreError, match="store directory"):
+        sg.compact(RemoteStore(Endpoint.from_options("http://127.0.0.1:9")))
+    with sg.open_store(memory=True) as s:
+        copies(s, 1)
+        assert sg.compact(s).quads == s.count() > 0 and sg.compact(s).after == 0
+
+
 @pytest.mark.parametrize("others", [0, 3], ids=["rebuild", "delete"])
 def test_a_failed_replace_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                      others: int) -> None:
@@ -187,3 +241,23 @@ def test_a_format_1_store_is_migrated(tmp_path: Path) -> None:
         assert r.graphs() == ["urn:g"]
     assert not (old / "oxigraph").exists() and json.loads((old / "stepnc-graph-store.json").read_text())[
         "format"] == store_module.FORMAT_VERSION
+
+
+def test_the_compact_command(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    store = str(tmp_path / "s")
+    with sg.open_store(store) as s:
+        graphs = copies(s, 2)
+    runner = CliRunner()
+    assert runner.invoke(main, ["unload", "--store", store, graphs[0]]).exit_code == 0
+    res = runner.invoke(main, ["compact", "--store", store, "--format", "json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["store"] == str(Path(store).resolve()) and doc["before"] > 0 and doc["after"] > 0
+    with sg.open_store(store, readonly=True) as r:
+        assert doc["quads"] == r.count() and r.graphs() == graphs[1:]
+    text = runner.invoke(main, ["compact", "--store", store])
+    assert text.exit_code == 0 and text.output.startswith("compacted ") and f"({doc['quads']:,} quads)" in text.output

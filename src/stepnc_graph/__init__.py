@@ -23,10 +23,12 @@ __version__ = "0.1.0"
 
 if TYPE_CHECKING:
     from stepnc_graph.api import (
+        Compacted,
         GraphInfo,
         LinkResult,
         LoadResult,
         QueryResult,
+        compact,
         export,
         info,
         link,
@@ -37,8 +39,8 @@ if TYPE_CHECKING:
         validate,
     )
 
-__all__ = ["GraphInfo", "LinkResult", "LoadResult", "QueryResult", "__version__", "export", "info", "link", "load",
-           "open_store", "query", "unload", "validate"]
+__all__ = ["Compacted", "GraphInfo", "LinkResult", "LoadResult", "QueryResult", "__version__", "compact", "export",
+           "info", "link", "load", "open_store", "query", "unload", "validate"]
 
 
 class _Package(types.ModuleType):

@@ -32,8 +32,8 @@ if TYPE_CHECKING:
 _LAZY = {"export": "stepnc_graph.export", "link": "stepnc_graph.link", "LinkResult": "stepnc_graph.link",
          "query": "stepnc_graph.query", "QueryResult": "stepnc_graph.query", "validate": "stepnc_graph.validate"}
 
-__all__ = ["GraphInfo", "LinkResult", "LoadResult", "QueryResult", "SourceError", "StoreBusy", "StoreError", "export",
-           "info", "link", "load", "open_store", "query", "unload", "validate"]
+__all__ = ["Compacted", "GraphInfo", "LinkResult", "LoadResult", "QueryResult", "SourceError", "StoreBusy", "StoreError",
+           "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
 
 
 def __getattr__(name: str) -> Any:
@@ -88,6 +88,30 @@ def unload(store: Store, graph: str) -> bool:
     from stepnc_graph.link import program_link_graphs
 
     return store.remove_graph(graph, companions=(derived_graph_iri(graph), *program_link_graphs(store, graph)))
+
+
+@dataclass(frozen=True)
+class Compacted:
+    """What :func:`compact` did: the store's bytes on disk before and after, and the quads it holds."""
+
+    before: int
+    after: int
+    quads: int
+
+    def asdict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def compact(store: Store, progress: Callable[[int, int], None] | None = None) -> Compacted:
+    """Rebuild an on-disk store's database from its graphs, atomically, giving back the space
+    that removed programs still hold (:meth:`GraphStore.compact` says why an unload alone does
+    not). ``progress(done, total)`` counts the quads copied. A SPARQL endpoint manages its own
+    storage: :class:`StoreError`."""
+    if not isinstance(store, GraphStore):
+        raise StoreError("compact works on a stepnc-graph store directory; a SPARQL endpoint manages its own storage")
+    before = store.disk_bytes()
+    store.compact(progress)
+    return Compacted(before, store.disk_bytes(), store.count())
 
 
 @dataclass(frozen=True)

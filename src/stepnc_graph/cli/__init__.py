@@ -1,7 +1,7 @@
 """The ``stepnc-graph`` command line. The only package that prints.
 
 One module per command group, each a thin layer over the Python API:
-:mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info),
+:mod:`.ontology`, :mod:`.schema`, :mod:`.store` (load, export, unload, info, compact),
 :mod:`.link` (PLM identifiers), :mod:`.query` (query, queries), :mod:`.plan`, :mod:`.serve`.
 Shared pieces (consoles, exit codes, store options) are in :mod:`.common`.
 
@@ -51,7 +51,8 @@ main.add_command(ontology.ontology)
 main.add_command(schema.schema)
 main.add_command(validate.validate_cmd)
 main.add_command(serve.serve_cmd)
-for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd, link.link_cmd):
+for command in (store.load_cmd, store.export_cmd, store.unload_cmd, store.info_cmd, store.compact_cmd,
+                link.link_cmd):
     main.add_command(command)
 main.add_command(query.query_cmd)
 main.add_command(query.queries_cmd)

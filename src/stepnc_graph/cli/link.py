@@ -57,7 +57,7 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bo
         check_iri(graph, "--graph")
     from stepnc_graph.link import link
 
-    with open_writer(store_path, wait=wait) as store:
+    with open_writer(store_path, wait=wait, create=False) as store:
         result = link(store, mapping, graph, allow_unknown=allow_unknown, replace=replace)
     if fmt == "json":
         click.echo(json.dumps(result.asdict(), indent=2))

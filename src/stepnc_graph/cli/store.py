@@ -1,6 +1,6 @@
-"""`stepnc-graph load | export | unload | info`: Part 21 programs in the store.
+"""`stepnc-graph load | export | unload | info | compact`: Part 21 programs in the store.
 
-``load`` and ``unload`` write: they take the store's writer lock (another
+``load``, ``unload`` and ``compact`` write: they take the store's writer lock (another
 writer fails with exit 2, or waits with ``--wait``). ``export`` and ``info``
 read the last published state: they work during a load, never create a store
 and never wait.
@@ -217,7 +217,7 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
 
     for g in graphs:
         _check_graph(g, "graph")
-    with open_writer(store_path, wait=wait, remote=remote) as store:
+    with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
         missing = [g for g in graphs if not unload(store, g)]
     for g in graphs:
         if g not in missing:
@@ -226,6 +226,49 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
         for g in missing:
             print_error(UsageProblem(f"no graph {g} in the store (see `stepnc-graph info`)"))
         sys.exit(EXIT_BAD_INPUT)
+
+
+@click.command("compact")
+@store_option
+@wait_option
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@reports_errors
+def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
+    """Give back the disk space that unloaded programs still hold.
+
+    `unload` compacts the database, but Oxigraph keeps the strings (literals,
+    IRIs) that only the removed data used, so a store whose programs come and
+    go grows. This rebuilds the database from the graphs it holds, as one
+    atomic write (readers keep reading the state before it). It copies every
+    quad: minutes for a store of many large programs. Never creates a store.
+    """
+    from stepnc_graph.api import compact
+
+    with open_writer(store_path, wait=wait, create=False) as store, _quad_progress(fmt) as bar:
+        task = bar.add_task("compacting", total=None) if bar is not None else None
+
+        def advance(done: int, total: int) -> None:
+            if bar is not None and task is not None:
+                bar.update(task, completed=done, total=total)
+
+        result = compact(store, advance)
+        location = str(store.path.resolve()) if store.path else "memory"
+    if fmt == "json":
+        click.echo(json.dumps({"store": location, **result.asdict()}, indent=2))
+        return
+    out.print(f"compacted {escape(location)}: {result.before / 1e6:,.0f} MB -> {result.after / 1e6:,.0f} MB on "
+              f"disk ({result.quads:,} quads)")
+
+
+def _quad_progress(fmt: str) -> Any:
+    """A progress bar over quads copied, on a terminal."""
+    if fmt != "text" or not err.is_terminal:
+        return _NoBar()
+    from rich.progress import BarColumn, MofNCompleteColumn, TimeRemainingColumn
+    from rich.progress import Progress as RichProgress
+
+    return RichProgress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
+                        TimeRemainingColumn(), console=err, transient=True)
 
 
 @click.command("info")
