@@ -7,7 +7,8 @@ For each program (a generated one and a replicated real one, see bench/generate.
 size, in the same run, every operation in its own fresh process on an on-disk store that
 an earlier process prepared: wall and CPU seconds, the process's peak RSS, how the store
 removed the old graph ("rebuild": the store held little else; "delete": batched deletes
-beside other programs), and the store's size on disk afterwards. Ratios are against the
+beside other programs), and the store's size on disk afterwards; then ``compact`` on what the
+unload left (its time, and the disk space it gives back). Ratios are against the
 fresh load of the same file measured in the same run. "beside 3 others" puts the program
 in a store that also holds three other copies of it (other graph IRIs).
 """
@@ -49,6 +50,8 @@ def child(op: str, store_dir: str, path: str) -> None:
             assert not r.diagnostics, r.diagnostics[:3]
         elif op == "unload":
             assert sg.unload(store, GRAPH)
+        elif op == "compact":
+            sg.compact(store)
         elif op.startswith("others"):
             for k in range(int(op[len("others"):])):
                 sg.load(store, [path], base_iri=f"{GRAPH}-other{k}")
@@ -76,7 +79,8 @@ def disk_mb(path: Path) -> float:
 
 def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict[str, float | str | None]]:
     """Median figures of load, replace and unload with ``others`` other programs in the store."""
-    results: dict[str, list[dict[str, float | str | None]]] = {"load": [], "replace": [], "unload": []}
+    results: dict[str, list[dict[str, float | str | None]]] = {"load": [], "replace": [], "unload": [],
+                                                               "compact": []}
     for _ in range(repeat):
         store = work / "store"
         shutil.rmtree(store, ignore_errors=True)
@@ -85,12 +89,13 @@ def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict
         results["load"].append(run("load", store, path))
         results["replace"].append(run("replace", store, path))
         results["unload"].append({**run("unload", store, path), "disk_mb": disk_mb(store)})
+        results["compact"].append({**run("compact", store, path), "disk_mb": disk_mb(store)})
     out = {}
     for op, runs in results.items():
         out[op] = {k: statistics.median(float(r[k]) for r in runs)  # type: ignore[arg-type]
                    for k in ("wall", "cpu", "rss_mb")}
         out[op]["removal"] = runs[0]["removal"]
-        if op == "unload":
+        if op in ("unload", "compact"):
             out[op]["disk_mb"] = statistics.median(float(r["disk_mb"]) for r in runs)  # type: ignore[arg-type]
     return out
 
@@ -112,7 +117,8 @@ def main() -> None:
         return
     args.data.mkdir(parents=True, exist_ok=True)
     print(f"machine: {os.cpu_count()} cores; Python {sys.version.split()[0]}; seconds are wall / CPU")
-    header = (f"{'program':>22} {'store holds':>15} | {'load':>22} | {'replace':>32} | {'unload':>42}")
+    header = (f"{'program':>22} {'store holds':>15} | {'load':>22} | {'replace':>32} | {'unload':>42} | "
+              f"{'compact (after the unload)':>31}")
     print(header)
     print("-" * len(header))
     for size in args.sizes:
@@ -129,7 +135,7 @@ def main() -> None:
             for others in args.others:
                 with tempfile.TemporaryDirectory(dir=args.data) as work:
                     r = scenario(path, others, repeat, Path(work))
-                load, rep, unl = r["load"], r["replace"], r["unload"]
+                load, rep, unl, comp = r["load"], r["replace"], r["unload"], r["compact"]
 
                 def cell(x: dict[str, float | str | None]) -> str:
                     return f"{x['wall']:5.1f}/{x['cpu']:5.1f} s {x['rss_mb']:5.0f} MB"
@@ -137,9 +143,9 @@ def main() -> None:
                 print(f"{name:>22} {'it alone' if not others else f'beside {others} others':>15} | {cell(load)} | "
                       f"{cell(rep)} {float(rep['wall']) / float(load['wall']):4.2f}x {rep['removal']:>7} | "
                       f"{cell(unl)} {float(unl['wall']) / float(load['wall']):4.2f}x {unl['removal']:>7} "
-                      f"{unl['disk_mb']:5.0f} MB", flush=True)
+                      f"{unl['disk_mb']:5.0f} MB | {cell(comp)} {comp['disk_mb']:5.0f} MB", flush=True)
     print("\nmedians; MB: the operation's peak RSS; the ratios are wall time against the fresh load in the same "
-          "row;\nthe last column is the store's size on disk after the unload.")
+          "row;\nafter the unload and after compact: the store's size on disk.")
 
 
 if __name__ == "__main__":

@@ -30,15 +30,21 @@ point, leaves ``CURRENT`` naming the previous generation; the next writer sees
 
 **Unload and replace, as close to the cost of a load as Oxigraph allows.** Oxigraph
 deletes quad by quad in transactions, about 13-19 µs of CPU a quad in a store of 3M
-quads (25 in one of 4.6M), where a bulk load of a named graph takes about 8 µs and
-copying the rest of the store into a fresh database about 10 µs (measured on 1.16M
-quads). So removing a graph either deletes its quads in bounded batches (flat
-memory, see :meth:`GraphStore._delete_in_batches`) and then compacts the database
-(an unload gives the space back; a replacement refills it), or -- when the graph is
-a large part of the store -- rebuilds the database from the other graphs, which also
-gives its disk space back at once; whichever costs less by those figures. Beside
-other programs an unload still costs two to three loads of the same program (deletes,
-then a compaction of the whole database).
+quads (23-25 in one of 5M), where a bulk load of a named graph takes about 7-8 µs and
+copying the rest of the store into a fresh database 10-16 µs. Every way of deleting
+that pyoxigraph offers costs that much or more (1M quads beside 2M: SPARQL by subjects
+12.9 µs, ``DELETE DATA`` 15.1, ``Store.remove`` 16.8, ``clear_graph`` 30.0 and 1.6 GB of
+memory): the time goes into RocksDB's memtable skip list and the indexed write batch
+of a transaction (perf), which a bulk load skips by writing table files. So removing a
+graph either deletes its quads in bounded batches (flat memory, see
+:meth:`GraphStore._delete_in_batches`) and then compacts the database (an unload gives
+the space back; a replacement refills it), or -- when the graph is a large part of the
+store -- rebuilds the database from the other graphs, which also gives its disk space
+back at once; whichever costs less by those figures. Beside other programs an unload
+therefore costs about two loads of the same program (deletes, then a compaction of the
+whole database), and a replacement a load more. The deletes' write-ahead log is dropped
+at once (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed
+quads used stay until :meth:`GraphStore.compact` rebuilds the database.
 
 An in-memory store (``path=None``) loads a new graph in place (dropping it on
 failure) and a replacement into staging graphs moved into place in one SPARQL
