@@ -134,12 +134,18 @@ def _progress(total: int, fmt: str) -> Any:
     """A progress bar over all files (bytes read), on a terminal, for loads worth one."""
     if total < (1 << 20) or fmt != "text" or not err.is_terminal:
         return _NoBar()
-    from rich.progress import BarColumn, DownloadColumn, TimeRemainingColumn
+    from rich.progress import DownloadColumn
+
+    return _bar(DownloadColumn())
+
+
+def _bar(counter: Any) -> Progress:
+    """A transient rich progress bar on stderr: description, bar, ``counter``, time left."""
+    from rich.progress import BarColumn, TimeRemainingColumn
     from rich.progress import Progress as RichProgress
 
-    bar: Progress = RichProgress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
-                                 TimeRemainingColumn(), console=err, transient=True)
-    return bar
+    return RichProgress("[progress.description]{task.description}", BarColumn(), counter, TimeRemainingColumn(),
+                        console=err, transient=True)
 
 
 def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt: str) -> NoReturn:
@@ -264,11 +270,9 @@ def _quad_progress(fmt: str) -> Any:
     """A progress bar over quads copied, on a terminal."""
     if fmt != "text" or not err.is_terminal:
         return _NoBar()
-    from rich.progress import BarColumn, MofNCompleteColumn, TimeRemainingColumn
-    from rich.progress import Progress as RichProgress
+    from rich.progress import MofNCompleteColumn
 
-    return RichProgress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
-                        TimeRemainingColumn(), console=err, transient=True)
+    return _bar(MofNCompleteColumn())
 
 
 @click.command("info")
