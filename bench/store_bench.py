@@ -1,4 +1,4 @@
-"""Store benchmark: load, replace (load again) and unload of one program, side by side.
+"""Store benchmark: load, replace (load again, and by an edited file) and unload of one program.
 
     pip install -e '.[bench]' && python bench/store_bench.py                 # 100k instances
     python bench/store_bench.py --sizes 100000 1000000                       # add 1M (slow)
@@ -8,7 +8,8 @@ size, in the same run, every operation in its own fresh process on an on-disk st
 an earlier process prepared: wall and CPU seconds, the process's peak RSS, how the store
 removed the old graph ("rebuild": the store held little else; "delete": batched deletes
 beside other programs), and the store's size on disk afterwards; then ``compact`` on what the
-unload left (its time, and the disk space it gives back). Ratios are against the
+unload left (its time, and the disk space it gives back). The edited file has a comment line
+after ``DATA;``: every instance's line changes, nothing else. Ratios are against the
 fresh load of the same file measured in the same run. "beside 3 others" puts the program
 in a store that also holds three other copies of it (other graph IRIs).
 """
@@ -48,6 +49,9 @@ def child(op: str, store_dir: str, path: str) -> None:
         if op == "load" or op == "replace":
             [r] = sg.load(store, [path], base_iri=GRAPH)
             assert not r.diagnostics, r.diagnostics[:3]
+        elif op == "replace-edited":
+            [r] = sg.load(store, [edited(Path(path))], base_iri=GRAPH, replace=True)
+            assert not r.diagnostics, r.diagnostics[:3]
         elif op == "unload":
             assert sg.unload(store, GRAPH)
         elif op == "compact":
@@ -59,6 +63,15 @@ def child(op: str, store_dir: str, path: str) -> None:
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     print(json.dumps({"wall": wall, "cpu": cpu, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                       "removal": removal}))
+
+
+def edited(path: Path) -> Path:
+    """``path`` after an edit near its top: a comment line after ``DATA;`` shifts the line of
+    every instance (each one's ``p21:line`` changes), the rest is the same."""
+    out = path.with_name(path.stem + "_edited.stp")
+    if not out.exists():
+        out.write_text(path.read_text().replace("DATA;\n", "DATA;\n/* revision B */\n", 1))
+    return out
 
 
 def run(op: str, store: Path, path: Path) -> dict[str, float | str | None]:
@@ -79,8 +92,8 @@ def disk_mb(path: Path) -> float:
 
 def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict[str, float | str | None]]:
     """Median figures of load, replace and unload with ``others`` other programs in the store."""
-    results: dict[str, list[dict[str, float | str | None]]] = {"load": [], "replace": [], "unload": [],
-                                                               "compact": []}
+    results: dict[str, list[dict[str, float | str | None]]] = {"load": [], "replace": [], "replace-edited": [],
+                                                               "unload": [], "compact": []}
     for _ in range(repeat):
         store = work / "store"
         shutil.rmtree(store, ignore_errors=True)
@@ -88,6 +101,7 @@ def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict
             run(f"others{others}", store, path)
         results["load"].append(run("load", store, path))
         results["replace"].append(run("replace", store, path))
+        results["replace-edited"].append(run("replace-edited", store, path))
         results["unload"].append({**run("unload", store, path), "disk_mb": disk_mb(store)})
         results["compact"].append({**run("compact", store, path), "disk_mb": disk_mb(store)})
     out = {}
@@ -117,8 +131,8 @@ def main() -> None:
         return
     args.data.mkdir(parents=True, exist_ok=True)
     print(f"machine: {os.cpu_count()} cores; Python {sys.version.split()[0]}; seconds are wall / CPU")
-    header = (f"{'program':>22} {'store holds':>15} | {'load':>22} | {'replace':>32} | {'unload':>42} | "
-              f"{'compact (after the unload)':>31}")
+    header = (f"{'program':>22} {'store holds':>15} | {'load':>22} | {'replace':>35} | "
+              f"{'replace by the edited file':>35} | {'unload':>42} | {'compact (after the unload)':>31}")
     print(header)
     print("-" * len(header))
     for size in args.sizes:
@@ -135,13 +149,14 @@ def main() -> None:
             for others in args.others:
                 with tempfile.TemporaryDirectory(dir=args.data) as work:
                     r = scenario(path, others, repeat, Path(work))
-                load, rep, unl, comp = r["load"], r["replace"], r["unload"], r["compact"]
+                load, rep, edit, unl, comp = r["load"], r["replace"], r["replace-edited"], r["unload"], r["compact"]
 
                 def cell(x: dict[str, float | str | None]) -> str:
                     return f"{x['wall']:5.1f}/{x['cpu']:5.1f} s {x['rss_mb']:5.0f} MB"
 
                 print(f"{name:>22} {'it alone' if not others else f'beside {others} others':>15} | {cell(load)} | "
-                      f"{cell(rep)} {float(rep['wall']) / float(load['wall']):4.2f}x {rep['removal']:>7} | "
+                      f"{cell(rep)} {float(rep['wall']) / float(load['wall']):4.2f}x {rep['removal']:>10} | "
+                      f"{cell(edit)} {float(edit['wall']) / float(load['wall']):4.2f}x {edit['removal']:>10} | "
                       f"{cell(unl)} {float(unl['wall']) / float(load['wall']):4.2f}x {unl['removal']:>7} "
                       f"{unl['disk_mb']:5.0f} MB | {cell(comp)} {comp['disk_mb']:5.0f} MB", flush=True)
     print("\nmedians; MB: the operation's peak RSS; the ratios are wall time against the fresh load in the same "

@@ -42,9 +42,12 @@ the space back; a replacement refills it), or -- when the graph is a large part 
 store -- rebuilds the database from the other graphs, which also gives its disk space
 back at once; whichever costs less by those figures. Beside other programs an unload
 therefore costs about two loads of the same program (deletes, then a compaction of the
-whole database), and a replacement a load more. The deletes' write-ahead log is dropped
-at once (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed
-quads used stay until :meth:`GraphStore.compact` rebuilds the database.
+whole database). A replacement there therefore writes only what changed
+(:meth:`GraphStore._replace_by_difference`): a re-load of the same or an edited file
+costs about a load, where deleting the old version and loading the new one cost two and
+a half. The deletes' write-ahead log is dropped at once
+(:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed quads used
+stay until :meth:`GraphStore.compact` rebuilds the database.
 
 An in-memory store (``path=None``) loads a new graph in place (dropping it on
 failure) and a replacement into staging graphs moved into place in one SPARQL
@@ -109,13 +112,15 @@ REBUILD_BATCH = 1_000_000
 #: a replacement beside other programs writes only what changed (see
 #: GraphStore._replace_by_difference) when the old version has at most this many quads (a
 #: 100k-instance program has 1.3-1.4M with its derived layer): the new one is staged in memory
-#: first, about 0.8 KB a quad at the peak (1.07 GB for 1.36M, measured), so this bound keeps a
-#: replacement under the load's 1.5 GB
-DIFF_MAX_QUADS = 1_600_000
+#: first, the peak of the whole replacement: 1.07 GB for 1.36M quads of a real program, 1.17 GB
+#: for 1.26M of the generated one (measured), so this bound keeps it under the load's 1.5 GB
+DIFF_MAX_QUADS = 1_500_000
+#: quads per bulk call when a replacement by difference inserts what changed
+INSERT_BATCH = 250_000
 #: quads per DELETE DATA request of a replacement by difference
 DELETE_LINES = 20_000
-#: an N-Triples line whose object is a blank node (Oxigraph writes " ." at the end of a line)
-_BLANK_OBJECT = re.compile(rb" _:[^ ]+ \.$")
+#: an N-Triples line whose object is a blank node (Oxigraph writes " .\n" at the end of a line)
+_BLANK_OBJECT = re.compile(rb" _:[^ ]+ \.\n$")
 #: IRI subjects whose quads one delete transaction removes (in each graph removed): about
 #: 60k quads of a program graph
 DELETE_SUBJECTS = 5_000
@@ -733,16 +738,30 @@ class GraphStore:
             raise errors[0]
         if staged.contains_named_graph(vocabulary) and self._count_in(staged, VOCABULARY_GRAPH) != seeded:
             names.append(VOCABULARY_GRAPH)
-        # the new version as text, one line a quad; the staged store (the larger) goes
-        new = {n: _triples_of(staged, n) if staged.contains_named_graph(ox.NamedNode(n)) else None for n in names}
-        del staged
-        _give_back_freed_memory()
-        self.last_removal = "difference"
-        self._apply_difference(new, cleared=set(present))
-        if any((text or b"").count(b"\n") != self.count(n) for n, text in new.items()):
-            self.last_removal = "difference, then delete"
-            self._delete_in_batches([n for n in names if self.has_graph(n)])
-            self._db.bulk_load(b"".join(_as_quads(text, n) for n, text in new.items() if text), ox.RdfFormat.N_QUADS)
+        # The new version as N-Triples files, one line a quad (text is kept out of memory: the
+        # staged store is the peak, 0.6-0.9 KB a quad); then the staged store goes.
+        scratch = self._file("difference")
+        shutil.rmtree(scratch, ignore_errors=True)
+        scratch.mkdir()
+        try:
+            new: dict[str, Path | None] = {}
+            for k, name in enumerate(names):
+                new[name] = None
+                if staged.contains_named_graph(ox.NamedNode(name)):
+                    new[name] = scratch / f"new{k}.nt"
+                    staged.dump(str(new[name]), ox.RdfFormat.N_TRIPLES, from_graph=ox.NamedNode(name))
+            del staged
+            _give_back_freed_memory()
+            self.last_removal = "difference"
+            self._apply_difference(new, scratch, cleared=set(present))
+            if any(_count_lines(path) != self.count(n) for n, path in new.items()):
+                self.last_removal = "difference, then delete"
+                self._delete_in_batches([n for n in names if self.has_graph(n)])
+                for name, path in new.items():
+                    if path is not None:
+                        self._insert_ntriples(path, name)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
 
     @staticmethod
     def _count_in(store: ox.Store, graph: str) -> int:
@@ -751,43 +770,60 @@ class GraphStore:
         [row] = list(rows)
         return int(row[0].value)
 
-    def _apply_difference(self, new: dict[str, bytes | None], cleared: set[str]) -> None:
-        """Make each graph on disk hold the N-Triples ``new`` gives for it (None: remove the graph;
-        see :meth:`_replace_by_difference`); the graphs in ``cleared`` hold no quad with a blank
-        node any more. One graph at a time, each text read line by line, only digests kept:
-        about 0.5 GB for 1.4M quads beside the texts."""
-        inserts: list[bytes] = []
-        for name, text in new.items():
-            node = ox.NamedNode(name)
-            suffix = b" <" + name.encode("utf-8") + b"> ."
-            new_keys = {_digest(line) for line in _lines(text or b"") if not _has_blank(line)}
-            old_keys: set[bytes] = set()
-            gone: list[bytes] = []
-            for line in _lines(_triples_of(self._db, name) if self.has_graph(name) else b""):
-                if not _has_blank(line):
-                    key = _digest(line)
-                    old_keys.add(key)
-                    if key not in new_keys:
-                        gone.append(line)
-            del new_keys
-            inserts += [line[:-2] + suffix for line in _lines(text or b"")
-                        if _has_blank(line) or _digest(line) not in old_keys]
-            del old_keys
-            for i in range(0, len(gone), DELETE_LINES):
-                body = b"\n".join(gone[i:i + DELETE_LINES]).decode("utf-8")
-                self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {body} }} }}")
-            del gone
-            if name not in cleared:
-                self._delete_blank_quads(node)
-            if text is None:
-                self._db.remove_graph(node)
-            elif not self.has_graph(name):
-                self._db.add_graph(node)
-        if inserts:
-            # one call: a blank node that two of the graphs share (the derived layer points at
-            # the program's list cells) stays one node
-            self._db.bulk_load(b"\n".join(inserts) + b"\n", ox.RdfFormat.N_QUADS)
+    def _apply_difference(self, new: dict[str, Path | None], scratch: Path, cleared: set[str]) -> None:
+        """Make each graph on disk hold the N-Triples file ``new`` gives for it (None: remove the
+        graph; see :meth:`_replace_by_difference`); the graphs in ``cleared`` hold no quad with a
+        blank node any more. One graph at a time, files read line by line, only digests kept in
+        memory (the lines to delete too); what to insert goes to a file in ``scratch``."""
+        inserts = scratch / "insert.nq"
+        with open(inserts, "wb") as out:
+            for name, path in new.items():
+                node = ox.NamedNode(name)
+                suffix = b" <" + name.encode("utf-8") + b"> .\n"
+                new_keys = {_digest(line) for line in _lines(path) if not _has_blank(line)}
+                old_path = None
+                if self.has_graph(name):
+                    old_path = scratch / "old.nt"
+                    self._db.dump(str(old_path), ox.RdfFormat.N_TRIPLES, from_graph=node)
+                old_keys: set[bytes] = set()
+                gone: list[bytes] = []
+                for line in _lines(old_path):
+                    if not _has_blank(line):
+                        key = _digest(line)
+                        old_keys.add(key)
+                        if key not in new_keys:
+                            gone.append(line)
+                del new_keys
+                out.writelines(line[:-3] + suffix for line in _lines(path)  # each line ends " .\n"
+                               if _has_blank(line) or _digest(line) not in old_keys)
+                del old_keys
+                for i in range(0, len(gone), DELETE_LINES):
+                    body = b"".join(gone[i:i + DELETE_LINES]).decode("utf-8")
+                    self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {body} }} }}")
+                del gone
+                if name not in cleared:
+                    self._delete_blank_quads(node)
+                if path is None:
+                    self._db.remove_graph(node)
+                elif not self.has_graph(name):
+                    self._db.add_graph(node)
+        self._insert_nquads(inserts)
         self._deletes_logged = True
+
+    def _insert_nquads(self, path: Path) -> None:
+        """Add the N-Quads file ``path``, its blank node labels kept (they are the staged store's
+        random 128-bit ids, so a blank node that two graphs share -- the derived layer points
+        at the program's list cells -- stays one node across calls)."""
+        quads = iter(ox.parse(path=str(path), format=ox.RdfFormat.N_QUADS))
+        for _ in _extend_in_calls(self._db, quads, INSERT_BATCH):
+            pass
+
+    def _insert_ntriples(self, path: Path, graph: str) -> None:
+        node = ox.NamedNode(graph)
+        triples = ox.parse(path=str(path), format=ox.RdfFormat.N_TRIPLES)
+        for _ in _extend_in_calls(self._db, (ox.Quad(t.subject, t.predicate, t.object, node) for t in triples),
+                                  INSERT_BATCH):
+            pass
 
     @property
     def _disk(self) -> ox.Store:
@@ -880,24 +916,10 @@ class GraphStore:
         self._store = ox.Store(str(self._file("work")))
 
     def _copy_graph(self, fresh: ox.Store, graph: ox.NamedNode | ox.BlankNode | ox.DefaultGraph) -> Iterator[int]:
-        """Copy ``graph`` into ``fresh`` in calls of at most :data:`REBUILD_BATCH` quads (the bulk
-        loader's memory grows with a call), yielding how many each call copied. A generator, so
-        that the iterator over the database lives in its frame only, not in the caller's."""
-        quads = iter(self._db.quads_for_pattern(None, None, None, graph))
-        while True:
-            copied = 0
-
-            def counted(part: Iterator[ox.Quad]) -> Iterator[ox.Quad]:
-                nonlocal copied
-                for quad in part:
-                    copied += 1
-                    yield quad
-
-            fresh.bulk_extend(counted(itertools.islice(quads, REBUILD_BATCH)))
-            if copied:
-                yield copied
-            if copied < REBUILD_BATCH:
-                break
+        """Copy ``graph`` into ``fresh``, yielding how many quads each bulk call copied. A
+        generator, so that the iterator over the database lives in its frame only, not in the
+        caller's."""
+        yield from _extend_in_calls(fresh, iter(self._db.quads_for_pattern(None, None, None, graph)))
         if isinstance(graph, (ox.NamedNode, ox.BlankNode)):
             fresh.add_graph(graph)  # an empty named graph stays a graph
 
@@ -1108,10 +1130,6 @@ class GraphStore:
         return rdflib.Dataset(store=OxigraphStore(store=self._db))
 
 
-def _triples_of(store: ox.Store, graph: str) -> bytes:
-    return store.dump(format=ox.RdfFormat.N_TRIPLES, from_graph=ox.NamedNode(graph)) or b""
-
-
 def _give_back_freed_memory() -> None:
     """Return the C heap's free memory to the system (glibc's ``malloc_trim``; elsewhere nothing).
 
@@ -1127,16 +1145,35 @@ def _give_back_freed_memory() -> None:
         pass
 
 
-def _as_quads(ntriples: bytes, graph: str) -> bytes:
-    """N-Triples (as Oxigraph writes them) as N-Quads in ``graph``."""
-    suffix = b" <" + graph.encode("utf-8") + b"> .\n"
-    return b"".join(line[:-2] + suffix for line in _lines(ntriples))
+def _extend_in_calls(db: ox.Store, quads: Iterator[ox.Quad], batch: int = REBUILD_BATCH) -> Iterator[int]:
+    """Bulk-add ``quads`` in calls of at most ``batch`` (the bulk loader's memory grows with a
+    call), the quads pulled one at a time; yields how many each call added."""
+    while True:
+        added = 0
+
+        def counted(part: Iterator[ox.Quad]) -> Iterator[ox.Quad]:
+            nonlocal added
+            for quad in part:
+                added += 1
+                yield quad
+
+        db.bulk_extend(counted(itertools.islice(quads, batch)))
+        if added:
+            yield added
+        if added < batch:
+            return
 
 
-def _lines(ntriples: bytes) -> Iterator[bytes]:
-    """The lines of an N-Triples text, without their line ends, one at a time (no list of them)."""
-    for line in io.BytesIO(ntriples):
-        yield line.rstrip(b"\n")
+def _lines(path: Path | None) -> Iterator[bytes]:
+    """The lines of an N-Triples file, one at a time (none for None)."""
+    if path is None:
+        return
+    with open(path, "rb") as fh:
+        yield from fh
+
+
+def _count_lines(path: Path | None) -> int:
+    return sum(1 for _ in _lines(path))
 
 
 def _has_blank(line: bytes) -> bool:
