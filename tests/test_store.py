@@ -389,3 +389,17 @@ def test_a_replacement_rewrites_a_stale_vocabulary(tmp_path: Path) -> None:
         sg.load(s, [EXAMPLE], replace=True)
         assert s.last_removal == "difference"
         assert graph_of(s, VOCABULARY_GRAPH) == vocabulary
+
+
+def test_a_killed_replacement_leaves_no_scratch_behind(tmp_path: Path) -> None:
+    """A writer killed while replacing by difference leaves work/ dirty and its texts in
+    difference/: the next writer's recovery removes them with the rest."""
+    with sg.open_store(tmp_path / "s") as s:
+        sg.load(s, [EXAMPLE])
+        before = quads(s)
+    (tmp_path / "s" / "difference").mkdir()
+    (tmp_path / "s" / "difference" / "new0.nt").write_bytes(b"<urn:a> <urn:b> <urn:c> .\n")
+    (tmp_path / "s" / "work.dirty").write_text("")
+    with sg.open_store(tmp_path / "s") as w:
+        assert quads(w) == before
+    assert not (tmp_path / "s" / "difference").exists()

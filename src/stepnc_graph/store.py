@@ -9,6 +9,7 @@ Layout of a store directory (format 2)::
     DIR/g000007.lock              readers hold a shared lock on it while they read that generation
     DIR/work/                     the writer's read-write database
     DIR/work.dirty                present while work/ may differ from the published generation
+    DIR/rebuild/, DIR/difference/ a write's scratch (a database being rebuilt, a replacement's texts)
 
 **One writer, many readers.** RocksDB lets one process open a database for
 writing, and a read-only opening of a database another process writes to is
@@ -443,6 +444,7 @@ class GraphStore:
             return
         shutil.rmtree(work, ignore_errors=True)
         shutil.rmtree(self._file("rebuild"), ignore_errors=True)
+        shutil.rmtree(self._file("difference"), ignore_errors=True)
         _clone(self._file(current), work)
         stamp.write_text(current)
         dirty.unlink(missing_ok=True)
@@ -700,7 +702,8 @@ class GraphStore:
         name alike, are all deleted and inserted again. A re-load of the same file changes only
         its load's provenance and the blank nodes' quads. If the counts do not come out as the
         staged ones (a line ``DELETE DATA`` did not match), the graphs are dropped and loaded
-        whole from the staged store: never a wrong graph.
+        whole from the staged version: never a wrong graph. The texts go through files in
+        ``DIR/difference/`` (removed after, or by the next writer's recovery).
 
         The loader rewrites the vocabulary graph only when it is stale; the staged store gets
         the vocabulary's own description from disk, so it is compared only when rewritten.
@@ -819,6 +822,8 @@ class GraphStore:
             pass
 
     def _insert_ntriples(self, path: Path, graph: str) -> None:
+        """Add the N-Triples file ``path`` to ``graph``, its blank node labels kept (see
+        :meth:`_insert_nquads`)."""
         node = ox.NamedNode(graph)
         triples = ox.parse(path=str(path), format=ox.RdfFormat.N_TRIPLES)
         for _ in _extend_in_calls(self._db, (ox.Quad(t.subject, t.predicate, t.object, node) for t in triples),
