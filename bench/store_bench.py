@@ -81,13 +81,10 @@ def run(op: str, store: Path, path: Path) -> dict[str, float | str | None]:
 
 
 def disk_mb(path: Path) -> float:
-    """Bytes on disk under ``path``, each hard-linked file once (generations share SST files)."""
-    seen: dict[tuple[int, int], int] = {}
-    for f in path.rglob("*"):
-        if f.is_file():
-            st = f.stat()
-            seen[(st.st_dev, st.st_ino)] = st.st_blocks * 512
-    return sum(seen.values()) / 1e6
+    """MB on disk under ``path``, each hard-linked file once (generations share SST files)."""
+    from stepnc_graph.store import directory_bytes
+
+    return directory_bytes(path) / 1e6
 
 
 def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict[str, float | str | None]]:

@@ -630,10 +630,11 @@ class GraphStore:
             return
         self._begin()
         try:
-            if self._removal([graph, *companions]) == "delete" and self._quads_in([graph, *companions]) <= DIFF_MAX_QUADS:
-                self._replace_by_difference(graph, chunks, before_commit, companions)
+            how, present, removed = self._removal([graph, *companions])
+            if how == "delete" and removed <= DIFF_MAX_QUADS:
+                self._replace_by_difference(graph, chunks, before_commit, companions, present)
             else:
-                self._drop([graph, *companions])
+                self._remove(how, present)
                 self._bulk_load(graph, chunks)
                 if before_commit is not None:
                     before_commit(lambda name: name)
@@ -667,22 +668,26 @@ class GraphStore:
     def _quads_in(self, graphs: Sequence[str]) -> int:
         return sum(self.count(g) for g in graphs if self.has_graph(g))
 
-    def _removal(self, graphs: Sequence[str]) -> str | None:
+    def _removal(self, graphs: Sequence[str]) -> tuple[str | None, list[str], int]:
         """How removing ``graphs`` costs less (see the module docstring): "rebuild", "delete",
-        or None when none of them is there."""
+        or None when none of them is there; with the ones present and their quads."""
         present = [g for g in graphs if self.has_graph(g)]
         if not present:
-            return None
+            return None, [], 0
         removed = self._quads_in(present)
-        return "rebuild" if (len(self._db) - removed) * REBUILD_COST < removed * DELETE_COST else "delete"
+        how = "rebuild" if (len(self._db) - removed) * REBUILD_COST < removed * DELETE_COST else "delete"
+        return how, present, removed
 
     def _drop(self, graphs: Sequence[str]) -> None:
         """Remove ``graphs`` from ``work/`` by the cheaper way (see the module docstring)."""
-        how = self._removal(graphs)
+        how, present, _ = self._removal(graphs)
+        self._remove(how, present)
+
+    def _remove(self, how: str | None, present: list[str]) -> None:
+        """Remove the graphs ``present`` the way :meth:`_removal` chose."""
         if how is None:
             return
         self.last_removal = how
-        present = [g for g in graphs if self.has_graph(g)]
         if how == "rebuild":
             self._rebuild_without(set(present))
         else:
@@ -690,8 +695,9 @@ class GraphStore:
 
     def _replace_by_difference(self, graph: str, chunks: Iterable[Chunk],
                                before_commit: Callable[[Callable[[str], str]], None] | None,
-                               companions: Sequence[str]) -> None:
-        """Replace ``graph`` and its companions by writing only the quads that changed.
+                               companions: Sequence[str], present: list[str]) -> None:
+        """Replace ``graph`` and its companions (of them, ``present`` are on disk) by writing only
+        the quads that changed.
 
         Deleting costs Oxigraph about twice what loading does, so a replacement that deletes
         the old version and loads the new one costs two to three loads beside other programs.
@@ -713,15 +719,13 @@ class GraphStore:
         staged.extend(self._db.quads_for_pattern(vocabulary, None, None, vocabulary))
         seeded = len(staged)
         names = [graph, *companions]
-        present = [n for n in names if self.has_graph(n)]
         errors: list[BaseException] = []
 
         def clear_blank() -> None:
             """The old version's quads with blank nodes go whatever the new one holds: deleted on
             disk while this thread parses the new version (Oxigraph's updates release the GIL)."""
             try:
-                for name in present:
-                    self._delete_blank_quads(ox.NamedNode(name))
+                self._delete_blank_quads([ox.NamedNode(name) for name in present])
             except BaseException as exc:  # noqa: BLE001 -- raised by the replacement below
                 errors.append(exc)
 
@@ -762,7 +766,7 @@ class GraphStore:
                 self._delete_in_batches([n for n in names if self.has_graph(n)])
                 for name, path in new.items():
                     if path is not None:
-                        self._insert_ntriples(path, name)
+                        self._insert(path, name)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
 
@@ -805,29 +809,26 @@ class GraphStore:
                     self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {body} }} }}")
                 del gone
                 if name not in cleared:
-                    self._delete_blank_quads(node)
+                    self._delete_blank_quads([node])
                 if path is None:
                     self._db.remove_graph(node)
                 elif not self.has_graph(name):
                     self._db.add_graph(node)
-        self._insert_nquads(inserts)
+        self._insert(inserts)
         self._deletes_logged = True
 
-    def _insert_nquads(self, path: Path) -> None:
-        """Add the N-Quads file ``path``, its blank node labels kept (they are the staged store's
-        random 128-bit ids, so a blank node that two graphs share -- the derived layer points
-        at the program's list cells -- stays one node across calls)."""
-        quads = iter(ox.parse(path=str(path), format=ox.RdfFormat.N_QUADS))
+    def _insert(self, path: Path, graph: str | None = None) -> None:
+        """Add the N-Quads file ``path`` (N-Triples into ``graph`` when one is given), its blank
+        node labels kept (they are the staged store's random 128-bit ids, so a blank node that two
+        graphs share -- the derived layer points at the program's list cells -- stays one node
+        across calls and files), in bulk calls of :data:`INSERT_BATCH` quads."""
+        if graph is None:
+            quads = iter(ox.parse(path=str(path), format=ox.RdfFormat.N_QUADS))
+        else:
+            node = ox.NamedNode(graph)
+            quads = (ox.Quad(t.subject, t.predicate, t.object, node)
+                     for t in ox.parse(path=str(path), format=ox.RdfFormat.N_TRIPLES))
         for _ in _extend_in_calls(self._db, quads, INSERT_BATCH):
-            pass
-
-    def _insert_ntriples(self, path: Path, graph: str) -> None:
-        """Add the N-Triples file ``path`` to ``graph``, its blank node labels kept (see
-        :meth:`_insert_nquads`)."""
-        node = ox.NamedNode(graph)
-        triples = ox.parse(path=str(path), format=ox.RdfFormat.N_TRIPLES)
-        for _ in _extend_in_calls(self._db, (ox.Quad(t.subject, t.predicate, t.object, node) for t in triples),
-                                  INSERT_BATCH):
             pass
 
     @property
@@ -835,15 +836,23 @@ class GraphStore:
         """The database on disk, also while a replacement is staged in memory."""
         return self._parked if self._parked is not None else self._db
 
-    def _delete_blank_quads(self, node: ox.NamedNode) -> None:
-        """Delete every quad of ``node`` with a blank subject, then with a blank object, predicate
-        by predicate in batches (see :meth:`_delete_in_batches`), in the database on disk."""
-        for where in ("isBlank(?s)", "isBlank(?o)"):
-            counts = self._disk.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o "
-                                    f"FILTER({where}) }} }} GROUP BY ?p")
-            work = [(node, str(row[0]), int(row[1].value), where) for row in counts]  # type: ignore[union-attr]
+    def _delete_blank_quads(self, nodes: Sequence[ox.NamedNode],
+                            wheres: Sequence[str] = ("isBlank(?s)", "isBlank(?o)")) -> int:
+        """Delete every quad of ``nodes`` that matches one of ``wheres`` (by default: a blank
+        subject, then a blank object), predicate by predicate in batches on
+        :data:`LOAD_THREADS` threads, the largest first (balanced threads), in the database on
+        disk; how many quads that was. A predicate's scan meets only its own tombstones."""
+        deleted = 0
+        for where in wheres:
+            work: list[tuple[ox.NamedNode, str, int, str]] = []
+            for node in nodes:
+                counts = self._disk.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o "
+                                          f"FILTER({where}) }} }} GROUP BY ?p")
+                work += [(node, str(row[0]), int(row[1].value), where) for row in counts]  # type: ignore[union-attr]
             with ThreadPoolExecutor(LOAD_THREADS) as pool:
                 list(pool.map(self._delete_by_predicate, sorted(work, key=lambda b: -b[2])))
+            deleted += sum(b[2] for b in work)
+        return deleted
 
     def _delete_by_predicate(self, item: tuple[ox.NamedNode, str, int, str]) -> None:
         """Delete the ``n`` quads of one predicate in one graph that match ``where``, in batches."""
@@ -862,18 +871,14 @@ class GraphStore:
         subjects on two threads; a bulk load 7.2). So the IRI subjects are listed up front and
         deleted :data:`DELETE_SUBJECTS` at a time; the quads of blank nodes (list cells, typed
         values), which SPARQL cannot name, then go predicate by predicate, where a scan only
-        meets the tombstones of its own predicate. Counted up front: :attr:`blank_quads_deleted` is
-        how many quads that second pass deleted.
+        meets the tombstones of its own predicate (:meth:`_delete_blank_quads`);
+        :attr:`blank_quads_deleted` is how many quads that second pass deleted.
         """
         nodes = [ox.NamedNode(g) for g in graphs]
         subjects: dict[str, None] = {}
-        blank: list[tuple[ox.NamedNode, str, int]] = []  # (graph, predicate, quads with a blank subject)
         for node in nodes:
             rows = self._db.query(f"SELECT DISTINCT ?s WHERE {{ GRAPH {node} {{ ?s ?p ?o }} }}")
             subjects.update((str(row[0]), None) for row in rows if isinstance(row[0], ox.NamedNode))  # type: ignore[union-attr]
-            counts = self._db.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o "
-                                    f"FILTER(isBlank(?s)) }} }} GROUP BY ?p")
-            blank += [(node, str(row[0]), int(row[1].value)) for row in counts]  # type: ignore[union-attr]
         listed = list(subjects)
         batches = [" ".join(listed[i:i + DELETE_SUBJECTS]) for i in range(0, len(listed), DELETE_SUBJECTS)]
         del subjects, listed
@@ -884,9 +889,8 @@ class GraphStore:
 
         with ThreadPoolExecutor(LOAD_THREADS) as pool:
             list(pool.map(by_subjects, batches))
-            list(pool.map(self._delete_by_predicate,  # the largest first: balanced threads
-                          [(node, p, n, "isBlank(?s)") for node, p, n in sorted(blank, key=lambda b: -b[2])]))
-        self.blank_quads_deleted = sum(b[2] for b in blank)
+        # what is left of these graphs has blank subjects: its quads go predicate by predicate
+        self.blank_quads_deleted = self._delete_blank_quads(nodes, ("isBlank(?s)",))
         self._deletes_logged = True
         for node in nodes:
             self._db.remove_graph(node)  # the name, and any quad the two passes did not meet
@@ -1073,17 +1077,7 @@ class GraphStore:
     def disk_bytes(self) -> int:
         """Bytes the store directory takes on disk (a file hard-linked into several generations
         counted once); 0 for an in-memory store."""
-        if self.path is None:
-            return 0
-        seen: dict[tuple[int, int], int] = {}
-        for root, _dirs, files in os.walk(self.path):
-            for name in files:
-                try:
-                    st = os.stat(os.path.join(root, name))
-                except FileNotFoundError:  # a generation collected meanwhile
-                    continue
-                seen[(st.st_dev, st.st_ino)] = st.st_blocks * 512
-        return sum(seen.values())
+        return 0 if self.path is None else directory_bytes(self.path)
 
     # -- reading ------------------------------------------------------------------------
 
@@ -1133,6 +1127,20 @@ class GraphStore:
         from oxrdflib.store import OxigraphStore
 
         return rdflib.Dataset(store=OxigraphStore(store=self._db))
+
+
+def directory_bytes(path: Path) -> int:
+    """Bytes the files under ``path`` take on disk, a file hard-linked into several places (the
+    store's generations share their SST files) counted once."""
+    seen: dict[tuple[int, int], int] = {}
+    for root, _dirs, files in os.walk(path):
+        for name in files:
+            try:
+                st = os.stat(os.path.join(root, name))
+            except FileNotFoundError:  # a generation collected meanwhile
+                continue
+            seen[(st.st_dev, st.st_ino)] = st.st_blocks * 512
+    return sum(seen.values())
 
 
 def _give_back_freed_memory() -> None:

@@ -258,12 +258,17 @@ def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
                 bar.update(task, completed=done, total=total)
 
         result = compact(store, advance)
-        location = str(store.path.resolve()) if store.path else "memory"
+        location = _location(store)
     if fmt == "json":
         click.echo(json.dumps({"store": location, **result.asdict()}, indent=2))
         return
     out.print(f"compacted {escape(location)}: {result.before / 1e6:,.0f} MB -> {result.after / 1e6:,.0f} MB on "
               f"disk ({result.quads:,} quads)")
+
+
+def _location(store: Store) -> str:
+    """Where a store is, for users: its absolute directory, its endpoint, or "memory"."""
+    return str(store.path.resolve()) if store.path else str(getattr(store, "endpoint", "memory"))
 
 
 def _quad_progress(fmt: str) -> Any:
@@ -286,7 +291,7 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
 
     with open_reader(store_path, remote) as store:
         rows = info(store)
-        location = str(store.path.resolve()) if store.path else str(getattr(store, "endpoint", "memory"))
+        location = _location(store)
     if fmt == "json":
         click.echo(json.dumps({"store": location, "graphs": [r.asdict() for r in rows]}, indent=2))
         return
