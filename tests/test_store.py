@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pyoxigraph as ox
@@ -298,6 +299,11 @@ def shared_blank_nodes(store: GraphStore, graph: str) -> int:
     return int(next(iter(rows))[0].value)
 
 
+def blank_nodes(store: GraphStore, graph: str) -> int:
+    rows = store.query(f"SELECT (COUNT(DISTINCT ?b) AS ?n) WHERE {{ GRAPH <{graph}> {{ ?b ?p ?o }} FILTER(isBlank(?b)) }}")
+    return int(next(iter(rows))[0].value)
+
+
 def edited(tmp_path: Path) -> Path:
     """The example with the edits a re-load usually brings: a comment that shifts every line
     below it, a changed value, a list one member shorter, a new instance."""
@@ -324,6 +330,13 @@ def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: 
         assert s.last_removal == "difference" and not r.diagnostics
         assert_as_a_fresh_load(s, G, new)
         assert all(graph_of(s, g) == theirs[g] for g in others)
+        written, nodes = s.last_difference, blank_nodes(s, G)
+        if version == "same file":  # at most the load's three timestamps changed
+            assert written["deleted"] == written["inserted"] <= 3 and written["blank nodes kept"] == nodes
+        elif version == "edited":  # each list cell kept its node: one cell now ends the shorter list
+            assert written["inserted with a blank node"] == 1 and written["blank nodes kept"] == nodes
+        else:
+            assert written["blank nodes kept"] < nodes
     with sg.open_store(tmp_path / "s", readonly=True) as reader:  # what was published
         assert_as_a_fresh_load(reader, G, new)
 
@@ -347,28 +360,40 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
         assert_as_a_fresh_load(s, G, edited(tmp_path))
 
 
-@pytest.mark.parametrize("when", ["clearing blank nodes beside the staging", "after writing the difference"])
+@pytest.mark.parametrize("when", ["while staging", "while writing the old version out", "while deleting what changed",
+                                  "after writing the difference"])
 def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(tmp_path: Path,
                                                                                 monkeypatch: pytest.MonkeyPatch,
                                                                                 when: str) -> None:
-    real = GraphStore._apply_difference
+    def fail_staging(self: GraphStore, *args: object, **kwargs: object) -> None:
+        raise RuntimeError("out of memory (injected)")
 
-    def fail_blank(self: GraphStore, node: ox.NamedNode) -> None:
-        raise RuntimeError("disk full (injected)")
-
-    def fail_after(self: GraphStore, *args: object, **kwargs: object) -> None:
-        real(self, *args, **kwargs)  # type: ignore[arg-type]
-        raise RuntimeError("disk full (injected)")
+    def fail_after(real: Callable[..., None]) -> Callable[..., None]:
+        def fail(*args: object, **kwargs: object) -> None:
+            real(*args, **kwargs)
+            raise RuntimeError("disk full (injected)")
+        return fail
 
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
         sg.load(s, [EXAMPLE])
         before = quads(s)
-        if when.startswith("clearing"):
-            monkeypatch.setattr(GraphStore, "_delete_blank_quads", fail_blank)
+        if when == "while staging":
+            monkeypatch.setattr(GraphStore, "_bulk_load", fail_staging)
+        elif when == "while writing the old version out":  # beside the staging, on a thread
+            real_dump = GraphStore._dump_graph
+
+            def fail_old(store: ox.Store, name: str, path: Path) -> Path | None:
+                if path.name.startswith("old"):
+                    raise OSError("disk full (injected)")
+                return real_dump(store, name, path)
+
+            monkeypatch.setattr(GraphStore, "_dump_graph", staticmethod(fail_old))
+        elif when == "while deleting what changed":
+            monkeypatch.setattr(GraphStore, "_delete_lines", fail_after(GraphStore._delete_lines))
         else:
-            monkeypatch.setattr(GraphStore, "_apply_difference", fail_after)
-        with pytest.raises(RuntimeError, match="injected"):
+            monkeypatch.setattr(GraphStore, "_apply_difference", fail_after(GraphStore._apply_difference))
+        with pytest.raises((RuntimeError, OSError), match="injected"):
             sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
         assert quads(s) == before
     with sg.open_store(tmp_path / "s", readonly=True) as r:
@@ -403,3 +428,33 @@ def test_a_killed_replacement_leaves_no_scratch_behind(tmp_path: Path) -> None:
     with sg.open_store(tmp_path / "s") as w:
         assert quads(w) == before
     assert not (tmp_path / "s" / "difference").exists()
+
+
+def test_blank_nodes_are_matched_by_their_place_under_their_owner(tmp_path: Path) -> None:
+    """The old and new versions' blank nodes are paired by the path from the instance that owns
+    them; nodes with no place of their own (members of a SET of lists, a node reached twice, a
+    cycle, a root nothing reaches) stay unpaired, and a literal that ends like a label is none."""
+    from stepnc_graph.store import _BlankMatch
+
+    rest, first = "<http://www.w3.org/1999/02/22-rdf-syntax-ns#rest>", "<http://www.w3.org/1999/02/22-rdf-syntax-ns#first>"
+
+    def version(name: str, labels: dict[str, str]) -> Path:
+        a, b, c, d, e, f, g, h = (labels[k] for k in "abcdefgh")
+        path = tmp_path / name
+        path.write_text("\n".join([
+            f"<urn:i1> <urn:list> _:{a} .", f"_:{a} {first} \"1\" .", f"_:{a} {rest} _:{b} .",
+            f"_:{b} {first} _:{c} .", f"_:{c} <urn:value> \"x _:{a}\" .",     # a nested list, a tricky literal
+            f"<urn:i2> <urn:set> _:{d} .", f"<urn:i2> <urn:set> _:{e} .",     # a SET of two lists
+            f"<urn:i3> <urn:p> _:{f} .", f"<urn:i4> <urn:p> _:{f} .",         # reached twice
+            f"_:{g} {rest} _:{h} .", f"_:{h} {rest} _:{g} .",                 # a cycle
+        ]) + "\n")
+        return path
+
+    old = version("old.nt", {k: f"old{k}" for k in "abcdefgh"})
+    new = version("new.nt", {k: f"new{k}" for k in "abcdefgh"})
+    match = _BlankMatch(old, new)
+    assert match.renamed == {b"newa": b"olda", b"newb": b"oldb", b"newc": b"oldc"}
+    assert match.relabel(b'_:newc <urn:value> "x _:newa" .\n') == b'_:oldc <urn:value> "x _:newa" .\n'
+    assert match.relabel(b"_:newa <urn:r> _:newb .\n") == b"_:olda <urn:r> _:oldb .\n"
+    assert match.relabel(b"_:newd <urn:r> <urn:x> .\n") == b"_:newd <urn:r> <urn:x> .\n"
+    assert _BlankMatch(None, new).renamed == {} and _BlankMatch(old, None).renamed == {}
