@@ -105,9 +105,11 @@ DIRECT_CHARS = 8_000_000
 #: measured alternating in one run; two such threads contend: 4.8-5.2 s). On
 #: disk, streaming and bytes measured the same, and streaming keeps less text.
 MEMORY_BATCH_CHARS = 4_000_000
-#: measured costs per quad (µs) of deleting a graph's quads and of copying a
-#: quad into a rebuilt database; they choose how a graph is removed
-DELETE_COST, REBUILD_COST = 19.0, 10.0
+#: measured costs per quad (µs of CPU time) of deleting a graph's quads (predicate by
+#: predicate: 14-15 s for 1.36M quads beside 4M) and of copying a quad into a rebuilt
+#: database; they choose how a graph is removed
+DELETE_COST, REBUILD_COST = 11.0, 10.0
+#: quads a delete transaction removes (30k to 250k measured the same; memory grows with it)
 DELETE_BATCH = 100_000
 #: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call)
 REBUILD_BATCH = 1_000_000
@@ -124,9 +126,6 @@ DELETE_LINES = 20_000
 #: an N-Triples line whose object is a blank node (Oxigraph writes " .\n" at the end of a line;
 #: no label holds a quote, which keeps a literal ending in " _:x" out)
 _BLANK_OBJECT = re.compile(rb" _:([^ \"]+) \.\n$")
-#: IRI subjects whose quads one delete transaction removes (in each graph removed): about
-#: 60k quads of a program graph
-DELETE_SUBJECTS = 5_000
 _LOCK_POLL = 0.2
 
 
@@ -296,8 +295,6 @@ class GraphStore:
         self.generation: str | None = None
         #: how the last graph removal was done on disk: "delete" or "rebuild" (for tests and benchmarks)
         self.last_removal: str | None = None
-        #: quads with a blank subject in the last graphs deleted by batches (see _delete_in_batches)
-        self.blank_quads_deleted = 0
         #: what the last replacement by difference wrote: quads deleted and inserted (and of
         #: these, with a blank node), blank nodes of the new version that kept the old version's
         #: node (see _replace_by_difference)
@@ -860,64 +857,39 @@ class GraphStore:
         """The database on disk, also while a replacement is staged in memory."""
         return self._parked if self._parked is not None else self._db
 
-    def _delete_blank_quads(self, nodes: Sequence[ox.NamedNode],
-                            wheres: Sequence[str] = ("isBlank(?s)", "isBlank(?o)")) -> int:
-        """Delete every quad of ``nodes`` that matches one of ``wheres`` (by default: a blank
-        subject, then a blank object), predicate by predicate in batches on
-        :data:`LOAD_THREADS` threads, the largest first (balanced threads), in the database on
-        disk; how many quads that was. A predicate's scan meets only its own tombstones."""
-        deleted = 0
-        for where in wheres:
-            work: list[tuple[ox.NamedNode, str, int, str]] = []
-            for node in nodes:
-                counts = self._disk.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o "
-                                          f"FILTER({where}) }} }} GROUP BY ?p")
-                work += [(node, str(row[0]), int(row[1].value), where) for row in counts]  # type: ignore[union-attr]
-            with ThreadPoolExecutor(LOAD_THREADS) as pool:
-                list(pool.map(self._delete_by_predicate, sorted(work, key=lambda b: -b[2])))
-            deleted += sum(b[2] for b in work)
-        return deleted
-
-    def _delete_by_predicate(self, item: tuple[ox.NamedNode, str, int, str]) -> None:
-        """Delete the ``n`` quads of one predicate in one graph that match ``where``, in batches."""
-        node, predicate, n, where = item
-        for _ in range(-(-n // DELETE_BATCH)):
-            self._disk.update(f"DELETE {{ GRAPH {node} {{ ?s {predicate} ?o }} }} WHERE {{ {{ SELECT ?s ?o WHERE "
-                            f"{{ GRAPH {node} {{ ?s {predicate} ?o FILTER({where}) }} }} LIMIT {DELETE_BATCH} }} }}")
-
     def _delete_in_batches(self, graphs: Sequence[str]) -> None:
         """Delete the quads of ``graphs`` (a program graph and its companions) in transactions of
-        bounded size (flat memory), on :data:`LOAD_THREADS` threads.
+        bounded size (flat memory), predicate by predicate, :data:`DELETE_BATCH` quads a
+        transaction, on :data:`LOAD_THREADS` threads, the largest predicates first (balanced
+        threads).
 
-        Why not "the first n quads of the graph" again and again: each such scan starts at
-        the graph's first key and walks over the tombstones of every quad deleted before it
-        (measured on 1M quads beside 2M: 17.6 µs a quad that way; 12.9 by subjects, 8.9 by
-        subjects on two threads; a bulk load 7.2). So the IRI subjects are listed up front and
-        deleted :data:`DELETE_SUBJECTS` at a time; the quads of blank nodes (list cells, typed
-        values), which SPARQL cannot name, then go predicate by predicate, where a scan only
-        meets the tombstones of its own predicate (:meth:`_delete_blank_quads`);
-        :attr:`blank_quads_deleted` is how many quads that second pass deleted.
+        Why by predicate: a batch's scan of one predicate's quads in a graph is one range of
+        an index, and it meets only the tombstones of the quads of that predicate deleted
+        before it. "The first n quads of the graph" again and again walks over the tombstones
+        of every quad deleted so far (17.6 µs a quad, 1M quads beside 2M), and deleting by
+        lists of IRI subjects seeks each subject's quads (a real 100k-instance program beside
+        three: 17.7 s of wall, 32 s of CPU time for its 1.36M quads; by predicate 8.5-9.8 s and
+        14-15 s; measured alternating in one run). It also takes blank nodes' quads, which
+        SPARQL cannot name, with the rest.
         """
         nodes = [ox.NamedNode(g) for g in graphs]
-        subjects: dict[str, None] = {}
+        work: list[tuple[ox.NamedNode, str, int]] = []
         for node in nodes:
-            rows = self._db.query(f"SELECT DISTINCT ?s WHERE {{ GRAPH {node} {{ ?s ?p ?o }} }}")
-            subjects.update((str(row[0]), None) for row in rows if isinstance(row[0], ox.NamedNode))  # type: ignore[union-attr]
-        listed = list(subjects)
-        batches = [" ".join(listed[i:i + DELETE_SUBJECTS]) for i in range(0, len(listed), DELETE_SUBJECTS)]
-        del subjects, listed
-
-        def by_subjects(values: str) -> None:
-            self._db.update(" ; ".join(f"DELETE {{ GRAPH {n} {{ ?s ?p ?o }} }} WHERE {{ VALUES ?s {{ {values} }} "
-                                       f"GRAPH {n} {{ ?s ?p ?o }} }}" for n in nodes))
-
+            counts = self._db.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o }} }} GROUP BY ?p")
+            work += [(node, str(row[0]), int(row[1].value)) for row in counts]  # type: ignore[union-attr]
+            del counts  # a query's rows hold the database open
         with ThreadPoolExecutor(LOAD_THREADS) as pool:
-            list(pool.map(by_subjects, batches))
-        # what is left of these graphs has blank subjects: its quads go predicate by predicate
-        self.blank_quads_deleted = self._delete_blank_quads(nodes, ("isBlank(?s)",))
+            list(pool.map(self._delete_predicate, sorted(work, key=lambda b: -b[2])))
         self._deletes_logged = True
         for node in nodes:
-            self._db.remove_graph(node)  # the name, and any quad the two passes did not meet
+            self._db.remove_graph(node)  # the name, and any quad added since the count
+
+    def _delete_predicate(self, item: tuple[ox.NamedNode, str, int]) -> None:
+        """Delete the ``n`` quads of one predicate in one graph, in batches."""
+        node, predicate, n = item
+        for _ in range(-(-n // DELETE_BATCH)):
+            self._db.update(f"DELETE {{ GRAPH {node} {{ ?s {predicate} ?o }} }} WHERE {{ {{ SELECT ?s ?o WHERE "
+                            f"{{ GRAPH {node} {{ ?s {predicate} ?o }} }} LIMIT {DELETE_BATCH} }} }}")
 
     def _rebuild_without(self, dropped: set[str], progress: Callable[[int, int], None] | None = None) -> None:
         """Replace ``work/`` by a fresh database holding every graph but ``dropped``.
