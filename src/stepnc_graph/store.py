@@ -30,23 +30,22 @@ point, leaves ``CURRENT`` naming the previous generation; the next writer sees
 ``work.dirty`` and rebuilds ``work/`` from that generation (hard links again).
 
 **Unload and replace, as close to the cost of a load as Oxigraph allows.** Oxigraph
-deletes quad by quad in transactions, about 13-19 µs of CPU a quad in a store of 3M
-quads (23-25 in one of 5M), where a bulk load of a named graph takes about 7-8 µs and
-copying the rest of the store into a fresh database 10-16 µs. Every way of deleting
-that pyoxigraph offers costs that much or more (1M quads beside 2M: SPARQL by subjects
-12.9 µs, ``DELETE DATA`` 15.1, ``Store.remove`` 16.8, ``clear_graph`` 30.0 and 1.6 GB of
-memory): the time goes into RocksDB's memtable skip list and the indexed write batch
-of a transaction (perf), which a bulk load skips by writing table files. So removing a
-graph either deletes its quads in bounded batches (flat memory, see
+deletes quad by quad in transactions; the cheapest way found here, predicate by predicate in
+batches, costs about 11 µs of CPU a quad in a store of 5M quads, where a bulk load of a named
+graph takes about 7-8 µs and copying the rest of the store into a fresh database 10-16 µs
+(by lists of IRI subjects it was 23 µs; ``DELETE DATA``, ``Store.remove`` and
+``clear_graph`` cost more still): the time goes into RocksDB's memtable skip list and the
+indexed write batch of a transaction (perf), which a bulk load skips by writing table files.
+So removing a graph either deletes its quads in bounded batches (flat memory, see
 :meth:`GraphStore._delete_in_batches`) and then compacts the database (an unload gives
 the space back; a replacement refills it), or -- when the graph is a large part of the
 store -- rebuilds the database from the other graphs, which also gives its disk space
 back at once; whichever costs less by those figures. Beside other programs an unload
-therefore costs about two loads of the same program (deletes, then a compaction of the
-whole database). A replacement there writes only what changed
-(:meth:`GraphStore._replace_by_difference`): a re-load of the same file costs 1.2-1.5
-loads, of an edited one 1.5-2, where deleting the old version and loading the new one
-cost 2.1-2.5 (100k instances beside three such programs, measured). The deletes' write-ahead log is dropped at once
+costs 1.1-1.6 loads of the same program (the deletes and a compaction of the whole
+database, about half each). A replacement there writes only what changed
+(:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
+one costs 0.8-1.1 loads, where deleting the old version and loading the new one cost
+2.1-2.5 (100k instances beside three such programs, measured). The deletes' write-ahead log is dropped at once
 (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed quads used
 stay until :meth:`GraphStore.compact` rebuilds the database.
 
