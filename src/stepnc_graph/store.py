@@ -634,7 +634,7 @@ class GraphStore:
         try:
             how, present, removed = self._removal([graph, *companions])
             if how == "delete" and removed <= DIFF_MAX_QUADS:
-                self._replace_by_difference(graph, chunks, before_commit, companions, present)
+                self._replace_by_difference(graph, chunks, before_commit, companions)
             else:
                 self._remove(how, present)
                 self._bulk_load(graph, chunks)
@@ -697,9 +697,8 @@ class GraphStore:
 
     def _replace_by_difference(self, graph: str, chunks: Iterable[Chunk],
                                before_commit: Callable[[Callable[[str], str]], None] | None,
-                               companions: Sequence[str], present: list[str]) -> None:
-        """Replace ``graph`` and its companions (of them, ``present`` are on disk) by writing only
-        the quads that changed.
+                               companions: Sequence[str]) -> None:
+        """Replace ``graph`` and its companions by writing only the quads that changed.
 
         Deleting costs Oxigraph about twice what loading does, so a replacement that deletes
         the old version and loads the new one costs two to three loads beside other programs.
