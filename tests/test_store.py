@@ -67,6 +67,7 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
     go (a blank node no IRI leads to too), nothing of the other programs, and the batches did
     the work (not the final removal of the graph's name)."""
     monkeypatch.setattr(store_module, "DELETE_BATCH", 5)  # several batches on a small graph
+    monkeypatch.setattr(store_module, "FLUSH_DELETES", 12)  # memory tables flushed between batches
     deleted: list[int] = []
     real = GraphStore._delete_predicate
 

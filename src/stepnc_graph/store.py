@@ -110,14 +110,20 @@ MEMORY_BATCH_CHARS = 4_000_000
 DELETE_COST, REBUILD_COST = 11.0, 10.0
 #: quads a delete transaction removes (30k to 250k measured the same; memory grows with it)
 DELETE_BATCH = 100_000
+#: deleted quads after which batched deletes flush RocksDB's memory tables. Unflushed, the
+#: tombstones stay in memory: unloading a real 200k-instance program (2.7M quads) beside two
+#: others peaked at 1,677 MB (37.8 s); flushed every 500k, 627 MB (34.3 s); after every
+#: 100k-quad batch, 467 MB but 57.9 s (measured in one run)
+FLUSH_DELETES = 500_000
 #: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call)
 REBUILD_BATCH = 1_000_000
 #: a replacement beside other programs writes only what changed (see
 #: GraphStore._replace_by_difference) when the old version has at most this many quads (a
 #: 100k-instance program has 1.3-1.4M with its derived layer): the new one is staged in memory
-#: first, the peak of the whole replacement: 1.07 GB for 1.36M quads of a real program, 1.17 GB
-#: for 1.26M of the generated one (measured), so this bound keeps it under the load's 1.5 GB
-DIFF_MAX_QUADS = 1_500_000
+#: first, the peak of the whole replacement: 646-648 MB for 1.26-1.36M quads, 1,150 MB for
+#: 2.72M of a real 200k-instance program (27.7 s, where deleting, before FLUSH_DELETES, and
+#: loading took 59.3 s and 1,871 MB; measured), so this bound keeps it under the load's 1.5 GB
+DIFF_MAX_QUADS = 3_000_000
 #: quads per bulk call when a replacement by difference inserts what changed
 INSERT_BATCH = 250_000
 #: quads per DELETE DATA request of a replacement by difference
@@ -300,6 +306,8 @@ class GraphStore:
         self.last_difference: dict[str, int] = {}
         self._deletes_logged = False  # work/'s write-ahead log holds batched deletes (see _commit)
         self._parked: ox.Store | None = None  # the database on disk while a replacement is staged
+        self._flush_lock = threading.Lock()  # batched deletes count their quads on several threads
+        self._unflushed = 0
         if self.path is None:
             self._store = ox.Store()
             return
@@ -876,6 +884,7 @@ class GraphStore:
             counts = self._db.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o }} }} GROUP BY ?p")
             work += [(node, str(row[0]), int(row[1].value)) for row in counts]  # type: ignore[union-attr]
             del counts  # a query's rows hold the database open
+        self._unflushed = 0
         with ThreadPoolExecutor(LOAD_THREADS) as pool:
             list(pool.map(self._delete_predicate, sorted(work, key=lambda b: -b[2])))
         self._deletes_logged = True
@@ -883,9 +892,17 @@ class GraphStore:
             self._db.remove_graph(node)  # the name, and any quad added since the count
 
     def _delete_predicate(self, item: tuple[ox.NamedNode, str, int]) -> None:
-        """Delete the ``n`` quads of one predicate in one graph, in batches."""
+        """Delete the ``n`` quads of one predicate in one graph, in batches; the database's
+        memory tables are flushed every :data:`FLUSH_DELETES` deleted quads (all threads)."""
         node, predicate, n = item
-        for _ in range(-(-n // DELETE_BATCH)):
+        for k in range(-(-n // DELETE_BATCH)):
+            with self._flush_lock:
+                self._unflushed += min(DELETE_BATCH, n - k * DELETE_BATCH)
+                due = self._unflushed >= FLUSH_DELETES
+                if due:
+                    self._unflushed = 0
+            if due:
+                self._db.flush()
             self._db.update(f"DELETE {{ GRAPH {node} {{ ?s {predicate} ?o }} }} WHERE {{ {{ SELECT ?s ?o WHERE "
                             f"{{ GRAPH {node} {{ ?s {predicate} ?o }} }} LIMIT {DELETE_BATCH} }} }}")
 
