@@ -360,9 +360,10 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
     left), they are dropped and loaded whole from the staged store."""
     real = GraphStore._apply_difference
 
-    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> None:
-        real(self, *args, **kwargs)  # type: ignore[arg-type]
+    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> dict[str, int]:
+        counts = real(self, *args, **kwargs)  # type: ignore[arg-type]
         self.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
+        return counts
 
     monkeypatch.setattr(GraphStore, "_apply_difference", apply_and_spoil)
     with sg.open_store(tmp_path / "s") as s:

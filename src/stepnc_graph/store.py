@@ -708,8 +708,9 @@ class GraphStore:
                                companions: Sequence[str]) -> None:
         """Replace ``graph`` and its companions by writing only the quads that changed.
 
-        Deleting costs Oxigraph about twice what loading does, so a replacement that deletes
-        the old version and loads the new one costs two to three loads beside other programs.
+        Deleting costs Oxigraph more than loading does (see the module docstring), so a
+        replacement that deletes the old version and loads the new one costs two to three loads
+        beside other programs.
         Here the new version is loaded and completed (``before_commit``) in a store in memory,
         then each graph is compared with the one on disk as N-Triples lines, and only the lines
         that changed are deleted and inserted. Blank nodes (list
@@ -730,7 +731,7 @@ class GraphStore:
         seeded = len(staged)
         names = [graph, *companions]
         # Both versions go to N-Triples files, one line a quad (text is kept out of memory: the
-        # staged store is the peak, 0.6-0.9 KB a quad).
+        # staged store is the peak, see DIFF_MAX_QUADS).
         scratch = self._file("difference")
         shutil.rmtree(scratch, ignore_errors=True)
         scratch.mkdir()
@@ -769,8 +770,9 @@ class GraphStore:
             del staged
             _give_back_freed_memory()
             self.last_removal = "difference"
-            self._apply_difference(old, new, _BlankMatch(old[graph], new[graph]), scratch / "insert.nq")
-            if any(_count_lines(path) != self.count(n) for n, path in new.items()):
+            staged_counts = self._apply_difference(old, new, _BlankMatch(old[graph], new[graph]),
+                                                   scratch / "insert.nq")
+            if any(staged_counts[n] != self.count(n) for n in new):
                 self.last_removal = "difference, then delete"
                 self._delete_in_batches([n for n in names if self.has_graph(n)])
                 for name, path in new.items():
@@ -796,20 +798,24 @@ class GraphStore:
         return int(row[0].value)
 
     def _apply_difference(self, old: dict[str, Path | None], new: dict[str, Path | None], match: _BlankMatch,
-                          inserts: Path) -> None:
+                          inserts: Path) -> dict[str, int]:
         """Make each graph on disk, dumped to the N-Triples file ``old`` gives for it, hold the
         file ``new`` gives for it (None: no such graph), blank nodes of the new version named
         as ``match`` gives (see :meth:`_replace_by_difference`). One graph at a time: its old
         lines in a set, the new ones read one at a time; what to insert goes to the file
-        ``inserts``, inserted at the end."""
+        ``inserts``, inserted at the end. Returns how many lines each new file has (the quads
+        each graph must end with)."""
         relabel = match.relabel
         deleted = inserted = blank = 0
+        lines: dict[str, int] = {}
         with open(inserts, "wb") as out:
             for name, path in new.items():
                 node = ox.NamedNode(name)
                 suffix = b" <" + name.encode("utf-8") + b"> .\n"
                 unmatched = _line_set(old.get(name))  # old lines no new line has matched yet
+                count = 0
                 for line in _lines(path):
+                    count += 1
                     if b"_:" in line:
                         line = relabel(line)
                     if line in unmatched:
@@ -817,7 +823,8 @@ class GraphStore:
                     else:
                         out.write(line[:-3] + suffix)  # each line ends " .\n"
                         inserted += 1
-                        blank += b"_:" in line and _has_blank(line)
+                        blank += _has_blank(line)
+                lines[name] = count
                 gone = list(unmatched)
                 del unmatched
                 self._delete_lines(node, gone)
@@ -831,17 +838,20 @@ class GraphStore:
         self._deletes_logged = True
         self.last_difference = {"deleted": deleted, "inserted": inserted, "inserted with a blank node": blank,
                                 "blank nodes kept": len(match.renamed)}
+        return lines
 
     def _delete_lines(self, node: ox.NamedNode, lines: list[bytes]) -> None:
         """Delete the N-Triples ``lines`` (as Oxigraph dumped them) from graph ``node``: ground
         ones by ``DELETE DATA`` in requests of :data:`DELETE_LINES`, the ones with a blank node
         (which SPARQL cannot name) parsed with their labels kept and removed one by one."""
-        ground = [line for line in lines if b"_:" not in line or not _has_blank(line)]
+        ground: list[bytes] = []
+        blank: list[bytes] = []
+        for line in lines:
+            (blank if _has_blank(line) else ground).append(line)
         for i in range(0, len(ground), DELETE_LINES):
             body = b"".join(ground[i:i + DELETE_LINES]).decode("utf-8")
             self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {body} }} }}")
-        blank = b"".join(line for line in lines if b"_:" in line and _has_blank(line))
-        for triple in ox.parse(blank, format=ox.RdfFormat.N_TRIPLES):
+        for triple in ox.parse(b"".join(blank), format=ox.RdfFormat.N_TRIPLES):
             self._db.remove(ox.Quad(triple.subject, triple.predicate, triple.object, node))
 
     def _insert(self, path: Path, graph: str | None = None) -> None:
@@ -1276,13 +1286,9 @@ def _line_set(path: Path | None) -> set[bytes]:
         return set(fh)
 
 
-def _count_lines(path: Path | None) -> int:
-    return sum(1 for _ in _lines(path))
-
-
 def _has_blank(line: bytes) -> bool:
     """Whether an N-Triples line (as Oxigraph writes it) has a blank node as subject or object."""
-    return line.startswith(b"_:") or _BLANK_OBJECT.search(line) is not None
+    return b"_:" in line and (line.startswith(b"_:") or _BLANK_OBJECT.search(line) is not None)
 
 
 def _digest(line: bytes) -> bytes:
