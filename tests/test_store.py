@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import pyoxigraph as ox
@@ -69,16 +69,26 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
     monkeypatch.setattr(store_module, "DELETE_BATCH", 5)  # several batches on a small graph
     monkeypatch.setattr(store_module, "FLUSH_DELETES", 12)  # memory tables flushed between batches
     deleted: list[int] = []
-    real = GraphStore._delete_predicate
+    running: list[int] = []  # deletes under way, as the threads saw them
+    flushes: list[int] = []  # deletes under way at each flush
+    real, real_flush = GraphStore._delete_predicate, GraphStore._flush
 
     def counted(self: GraphStore, item: tuple[ox.NamedNode, str, int]) -> None:
-        node, predicate, _ = item
+        node, predicate, n = item
+        running.append(1)
         before = sum(1 for _ in self.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]), None, node))
         real(self, item)
         deleted.append(before - sum(1 for _ in self.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]),
                                                                                 None, node)))
+        assert deleted[-1] == n
+        running.append(-1)
+
+    def flush(self: GraphStore) -> None:
+        flushes.append(sum(running))
+        real_flush(self)
 
     monkeypatch.setattr(GraphStore, "_delete_predicate", counted)
+    monkeypatch.setattr(GraphStore, "_flush", flush)
     with sg.open_store(tmp_path / "s") as s:
         graphs = copies(s, 4)
         counts = {g: s.count(g) for g in graphs}
@@ -91,6 +101,8 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
                 > 2 * store_module.DELETE_BATCH
             deleted.clear()
             assert sg.unload(s, g) and s.last_removal == "delete" and sum(deleted) == held
+            assert len(flushes) >= held // 12 - 1 and not any(flushes)  # never beside a running delete
+            flushes.clear()
             assert not s.has_graph(g) and s.count(g) == s.count(g + "/derived") == 0
             assert {h: s.count(h) for h in graphs[2:]} == {h: counts[h] for h in graphs[2:]}
     with sg.open_store(tmp_path / "s", readonly=True) as r:
@@ -332,8 +344,34 @@ def edited(tmp_path: Path) -> Path:
     return path
 
 
+@pytest.fixture(params=["in memory", "on disk, compared in parts"])
+def staging(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Where a replacement by difference stages the new version: in memory (a program of up to
+    STAGE_IN_MEMORY_QUADS), or on disk with each graph compared in parts (a larger one, here
+    made so by small bounds). Gives the part counts of the splits done."""
+    splits: list[int] = []
+    if request.param != "in memory":
+        monkeypatch.setattr(store_module, "STAGE_IN_MEMORY_QUADS", 0)
+        monkeypatch.setattr(store_module, "COMPARE_BYTES", 4096)
+        real = store_module._split_lines
+
+        def split(lines: Iterable[bytes], parts: int, stem: Path) -> list[Path]:
+            splits.append(parts)
+            return real(lines, parts, stem)
+
+        monkeypatch.setattr(store_module, "_split_lines", split)
+    return splits
+
+
+def staged_as(staging: list[int], s: GraphStore) -> None:
+    """The replacement staged where the ``staging`` fixture asked, in parts if on disk."""
+    on_disk = s.last_difference["staged in memory"] == 0
+    assert on_disk == bool(staging) and all(parts > 1 for parts in staging)
+
+
 @pytest.mark.parametrize("version", ["same file", "edited", "another program"])
-def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: Path, version: str) -> None:
+def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: Path, version: str,
+                                                                      staging: list[int]) -> None:
     new = {"same file": EXAMPLE, "edited": edited(tmp_path), "another program": generated(tmp_path, 300)}[version]
     with sg.open_store(tmp_path / "s") as s:
         others = copies(s, 3)
@@ -341,6 +379,7 @@ def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: 
         theirs = {g: graph_of(s, g) for g in others}
         [r] = sg.load(s, [new], base_iri=G, replace=True)
         assert s.last_removal == "difference" and not r.diagnostics
+        staged_as(staging, s)
         assert_as_a_fresh_load(s, G, new)
         assert all(graph_of(s, g) == theirs[g] for g in others)
         written, nodes = s.last_difference, blank_nodes(s, G)
@@ -378,7 +417,7 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
                                   "after writing the difference"])
 def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(tmp_path: Path,
                                                                                 monkeypatch: pytest.MonkeyPatch,
-                                                                                when: str) -> None:
+                                                                                when: str, staging: list[int]) -> None:
     def fail_staging(self: GraphStore, *args: object, **kwargs: object) -> None:
         raise RuntimeError("out of memory (injected)")
 
@@ -410,6 +449,7 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
         with pytest.raises((RuntimeError, OSError), match="injected"):
             sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
         assert quads(s) == before
+        assert not (tmp_path / "s" / "difference").exists()  # the scratch, a staged store on disk too
     with sg.open_store(tmp_path / "s", readonly=True) as r:
         assert quads(r) == before
 
@@ -472,3 +512,55 @@ def test_blank_nodes_are_matched_by_their_place_under_their_owner(tmp_path: Path
     assert match.relabel(b"_:newa <urn:r> _:newb .\n") == b"_:olda <urn:r> _:oldb .\n"
     assert match.relabel(b"_:newd <urn:r> <urn:x> .\n") == b"_:newd <urn:r> <urn:x> .\n"
     assert _BlankMatch(None, new).renamed == {} and _BlankMatch(old, None).renamed == {}
+
+
+def test_a_large_graph_is_compared_in_parts_that_pair_equal_lines(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two dumps too large to hold at once are split by a hash of each line: every part pair
+    holds the same lines as the whole files would have matched, the new lines relabelled, and
+    the parts' files are gone once compared."""
+    from stepnc_graph.store import _compared_parts
+
+    monkeypatch.setattr(store_module, "COMPARE_BYTES", 200)
+    old, new = tmp_path / "old.nt", tmp_path / "new.nt"
+    old_lines = [f"<urn:s{k}> <urn:p> \"{k}\" .\n".encode() for k in range(100)] + [b"_:o1 <urn:p> <urn:x> .\n"]
+    new_lines = [f"<urn:s{k}> <urn:p> \"{k}\" .\n".encode() for k in range(50, 150)] + [b"_:n1 <urn:p> <urn:x> .\n"]
+    old.write_bytes(b"".join(old_lines))
+    new.write_bytes(b"".join(new_lines))
+
+    def relabel(line: bytes) -> bytes:
+        return line.replace(b"_:n1", b"_:o1")
+
+    pairs = 0
+    matched: set[bytes] = set()
+    seen_new: list[bytes] = []
+    for old_part, new_part in _compared_parts(old, new, relabel, tmp_path / "parts"):
+        assert old_part is not None
+        olds = set(old_part.read_bytes().splitlines(keepends=True))
+        news = list(new_part)
+        matched |= olds & set(news)
+        seen_new += news
+        pairs += 1
+    assert pairs == -(-old.stat().st_size // 200) > 1
+    assert sorted(seen_new) == sorted(relabel(line) for line in new_lines)
+    assert matched == set(old_lines) & {relabel(line) for line in new_lines} and len(matched) == 51
+    assert list((tmp_path / "parts").iterdir()) == []
+
+
+def test_deletes_are_split_into_rounds_of_distinct_predicates() -> None:
+    """Each round deletes at most the budget, a predicate at most once and at most its share per
+    thread; together the rounds delete every quad."""
+    from stepnc_graph.store import _delete_rounds
+
+    g, h = ox.NamedNode("urn:g"), ox.NamedNode("urn:h")
+    work = [(g, "<urn:a>", 23), (g, "<urn:b>", 4), (h, "<urn:a>", 7), (g, "<urn:c>", 0)]
+    rounds = _delete_rounds(work, 10, 2)
+    for part in rounds:
+        assert sum(n for _, _, n in part) <= 10 and all(0 < n <= 5 for _, _, n in part)
+        assert len({(node, p) for node, p, _ in part}) == len(part)
+    totals: dict[tuple[ox.NamedNode, str], int] = {}
+    for part in rounds:
+        for node, p, n in part:
+            totals[(node, p)] = totals.get((node, p), 0) + n
+    assert totals == {(g, "<urn:a>"): 23, (g, "<urn:b>"): 4, (h, "<urn:a>"): 7}
+    assert len(rounds) == 5  # 34 quads; the last ones are all one predicate's

@@ -110,7 +110,8 @@ MEMORY_BATCH_CHARS = 4_000_000
 DELETE_COST, REBUILD_COST = 11.0, 10.0
 #: quads a delete transaction removes (30k to 250k measured the same; memory grows with it)
 DELETE_BATCH = 100_000
-#: deleted quads after which batched deletes flush RocksDB's memory tables. Unflushed, the
+#: deleted quads after which batched deletes flush RocksDB's memory tables (between rounds of
+#: deletes, see GraphStore._flush). Unflushed, the
 #: tombstones stay in memory: unloading a real 200k-instance program (2.7M quads) beside two
 #: others peaked at 1,677 MB (37.8 s); flushed every 500k, 627 MB (34.3 s); after every
 #: 100k-quad batch, 467 MB but 57.9 s (measured in one run)
@@ -118,12 +119,17 @@ FLUSH_DELETES = 500_000
 #: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call)
 REBUILD_BATCH = 1_000_000
 #: a replacement beside other programs writes only what changed (see
-#: GraphStore._replace_by_difference) when the old version has at most this many quads (a
-#: 100k-instance program has 1.3-1.4M with its derived layer): the new one is staged in memory
-#: first, the peak of the whole replacement: 646-648 MB for 1.26-1.36M quads, 1,150 MB for
-#: 2.72M of a real 200k-instance program (27.7 s, where deleting, before FLUSH_DELETES, and
-#: loading took 59.3 s and 1,871 MB; measured), so this bound keeps it under the load's 1.5 GB
-DIFF_MAX_QUADS = 3_000_000
+#: GraphStore._replace_by_difference). The new version is staged in a store in memory when the
+#: old one has at most this many quads (a 100k-instance program has 1.3-1.4M with its derived
+#: layer), else in a store on disk in the scratch directory. In memory it is the peak of the
+#: whole replacement: 646-648 MB for 1.26-1.36M quads, 1,150 MB for 2.72M of a real
+#: 200k-instance program (27.7 s, where deleting, before FLUSH_DELETES, and loading took 59.3 s
+#: and 1,871 MB; measured), so this bound keeps it under the load's 1.5 GB; on disk it costs
+#: what loading into an empty store costs, in a load's memory
+STAGE_IN_MEMORY_QUADS = 3_000_000
+#: bytes of one graph's old N-Triples lines compared at a time: a larger dump is first split
+#: into parts by a hash of each line (the lines in a set take about 1.5 times their size)
+COMPARE_BYTES = 256 << 20
 #: quads per bulk call when a replacement by difference inserts what changed
 INSERT_BATCH = 250_000
 #: quads per DELETE DATA request of a replacement by difference
@@ -306,8 +312,6 @@ class GraphStore:
         self.last_difference: dict[str, int] = {}
         self._deletes_logged = False  # work/'s write-ahead log holds batched deletes (see _commit)
         self._parked: ox.Store | None = None  # the database on disk while a replacement is staged
-        self._flush_lock = threading.Lock()  # batched deletes count their quads on several threads
-        self._unflushed = 0
         if self.path is None:
             self._store = ox.Store()
             return
@@ -641,8 +645,9 @@ class GraphStore:
         self._begin()
         try:
             how, present, removed = self._removal([graph, *companions])
-            if how == "delete" and removed <= DIFF_MAX_QUADS:
-                self._replace_by_difference(graph, chunks, before_commit, companions)
+            if how == "delete":
+                self._replace_by_difference(graph, chunks, before_commit, companions,
+                                            in_memory=removed <= STAGE_IN_MEMORY_QUADS)
             else:
                 self._remove(how, present)
                 self._bulk_load(graph, chunks)
@@ -705,16 +710,17 @@ class GraphStore:
 
     def _replace_by_difference(self, graph: str, chunks: Iterable[Chunk],
                                before_commit: Callable[[Callable[[str], str]], None] | None,
-                               companions: Sequence[str]) -> None:
+                               companions: Sequence[str], in_memory: bool = True) -> None:
         """Replace ``graph`` and its companions by writing only the quads that changed.
 
         Deleting costs Oxigraph more than loading does (see the module docstring), so a
         replacement that deletes the old version and loads the new one costs two to three loads
         beside other programs.
-        Here the new version is loaded and completed (``before_commit``) in a store in memory,
-        then each graph is compared with the one on disk as N-Triples lines, and only the lines
-        that changed are deleted and inserted. Blank nodes (list
-        cells, typed values), which no two loads name alike, are first matched between the
+        Here the new version is loaded and completed (``before_commit``) in a store of its own
+        (in memory, or on disk in the scratch directory when ``in_memory`` is false, see
+        :data:`STAGE_IN_MEMORY_QUADS`), then each graph is compared with the one on disk as
+        N-Triples lines, and only the lines that changed are deleted and inserted. Blank nodes
+        (list cells, typed values), which no two loads name alike, are first matched between the
         versions by their place under the instance that owns them (:class:`_BlankMatch`), so an
         unchanged list compares equal and keeps its nodes. A re-load of the same file then
         changes only its load's provenance. If the counts do not come out as the staged ones,
@@ -725,61 +731,69 @@ class GraphStore:
         The loader rewrites the vocabulary graph only when it is stale; the staged store gets
         the vocabulary's own description from disk, so it is compared only when rewritten.
         """
-        staged = ox.Store()
-        vocabulary = ox.NamedNode(VOCABULARY_GRAPH)
-        staged.extend(self._db.quads_for_pattern(vocabulary, None, None, vocabulary))
-        seeded = len(staged)
-        names = [graph, *companions]
-        # Both versions go to N-Triples files, one line a quad (text is kept out of memory: the
-        # staged store is the peak, see DIFF_MAX_QUADS).
         scratch = self._file("difference")
         shutil.rmtree(scratch, ignore_errors=True)
         scratch.mkdir()
         try:
-            old: dict[str, Path | None] = {}
-            errors: list[BaseException] = []
-
-            def dump_old() -> None:
-                """The old version is written out while the new one is staged (Oxigraph's dump
-                releases the GIL: measured, 4 s of a 100k-instance program's 1.3M quads)."""
-                try:
-                    for k, name in enumerate(names):
-                        old[name] = self._dump_graph(self._disk, name, scratch / f"old{k}.nt")
-                except BaseException as exc:  # noqa: BLE001 -- raised by the replacement below
-                    traceback.clear_frames(exc.__traceback__)  # its frames' locals hold the database
-                    errors.append(exc)
-
-            # The database on disk is parked in an attribute, never in a local of this frame: a
-            # failure's traceback must not keep it open, or the rollback could not reopen it.
-            self._parked, self._store = self._store, staged
-            dumping = threading.Thread(target=dump_old, daemon=True)
-            dumping.start()
-            try:
-                self._bulk_load(graph, chunks, in_memory=True)
-                if before_commit is not None:
-                    before_commit(lambda name: name)
-            finally:
-                dumping.join()
-                self._store, self._parked = self._parked, None
-            if errors:
-                raise errors[0]
-            if staged.contains_named_graph(vocabulary) and self._count_in(staged, VOCABULARY_GRAPH) != seeded:
-                names.append(VOCABULARY_GRAPH)
-                old[VOCABULARY_GRAPH] = self._dump_graph(self._db, VOCABULARY_GRAPH, scratch / "old-vocabulary.nt")
-            new = {name: self._dump_graph(staged, name, scratch / f"new{k}.nt") for k, name in enumerate(names)}
-            del staged
+            staged = ox.Store() if in_memory else ox.Store(str(scratch / "staged"))
+            new, old = self._stage(staged, graph, chunks, before_commit, [graph, *companions], scratch, in_memory)
+            del staged  # the peak of an in-memory replacement; on disk, its files go with the scratch
             _give_back_freed_memory()
+            shutil.rmtree(scratch / "staged", ignore_errors=True)
             self.last_removal = "difference"
-            staged_counts = self._apply_difference(old, new, _BlankMatch(old[graph], new[graph]),
-                                                   scratch / "insert.nq")
+            staged_counts = self._apply_difference(old, new, _BlankMatch(old[graph], new[graph]), scratch)
+            self.last_difference["staged in memory"] = int(in_memory)
             if any(staged_counts[n] != self.count(n) for n in new):
                 self.last_removal = "difference, then delete"
-                self._delete_in_batches([n for n in names if self.has_graph(n)])
+                self._delete_in_batches([n for n in new if self.has_graph(n)])
                 for name, path in new.items():
                     if path is not None:
                         self._insert(path, name)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
+
+    def _stage(self, staged: ox.Store, graph: str, chunks: Iterable[Chunk],
+               before_commit: Callable[[Callable[[str], str]], None] | None, names: list[str], scratch: Path,
+               in_memory: bool) -> tuple[dict[str, Path | None], dict[str, Path | None]]:
+        """Load the new version of ``graph`` into ``staged`` and complete it there, while the old
+        version of the graphs ``names`` is written out; then write the new version out. Returns
+        the N-Triples files of the new and of the old version, graph by graph (None: no such
+        graph); the vocabulary graph is among them when the load rewrote it."""
+        vocabulary = ox.NamedNode(VOCABULARY_GRAPH)
+        staged.extend(self._db.quads_for_pattern(vocabulary, None, None, vocabulary))
+        seeded = len(staged)
+        old: dict[str, Path | None] = {}
+        errors: list[BaseException] = []
+
+        def dump_old() -> None:
+            """The old version is written out while the new one is staged (Oxigraph's dump
+            releases the GIL: measured, 4 s of a 100k-instance program's 1.3M quads)."""
+            try:
+                for k, name in enumerate(names):
+                    old[name] = self._dump_graph(self._disk, name, scratch / f"old{k}.nt")
+            except BaseException as exc:  # noqa: BLE001 -- raised by the replacement below
+                traceback.clear_frames(exc.__traceback__)  # its frames' locals hold the database
+                errors.append(exc)
+
+        # The database on disk is parked in an attribute, never in a local of this frame: a
+        # failure's traceback must not keep it open, or the rollback could not reopen it.
+        self._parked, self._store = self._store, staged
+        dumping = threading.Thread(target=dump_old, daemon=True)
+        dumping.start()
+        try:
+            self._bulk_load(graph, chunks, in_memory=in_memory)
+            if before_commit is not None:
+                before_commit(lambda name: name)
+        finally:
+            dumping.join()
+            self._store, self._parked = self._parked, None
+        if errors:
+            raise errors[0]
+        if staged.contains_named_graph(vocabulary) and self._count_in(staged, VOCABULARY_GRAPH) != seeded:
+            names = [*names, VOCABULARY_GRAPH]
+            old[VOCABULARY_GRAPH] = self._dump_graph(self._db, VOCABULARY_GRAPH, scratch / "old-vocabulary.nt")
+        new = {name: self._dump_graph(staged, name, scratch / f"new{k}.nt") for k, name in enumerate(names)}
+        return new, old
 
     @staticmethod
     def _dump_graph(store: ox.Store, name: str, path: Path) -> Path | None:
@@ -798,38 +812,40 @@ class GraphStore:
         return int(row[0].value)
 
     def _apply_difference(self, old: dict[str, Path | None], new: dict[str, Path | None], match: _BlankMatch,
-                          inserts: Path) -> dict[str, int]:
+                          scratch: Path) -> dict[str, int]:
         """Make each graph on disk, dumped to the N-Triples file ``old`` gives for it, hold the
         file ``new`` gives for it (None: no such graph), blank nodes of the new version named
-        as ``match`` gives (see :meth:`_replace_by_difference`). One graph at a time: its old
-        lines in a set, the new ones read one at a time; what to insert goes to the file
-        ``inserts``, inserted at the end. Returns how many lines each new file has (the quads
-        each graph must end with)."""
-        relabel = match.relabel
+        as ``match`` gives (see :meth:`_replace_by_difference`). One graph at a time, one part
+        of it at a time (:func:`_compared_parts`): its old lines in a set, the new ones read one
+        at a time; the lines to delete and to insert go to files in ``scratch``, and are
+        deleted graph by graph, inserted at the end. Returns how many lines each new file has
+        (the quads each graph must end with)."""
         deleted = inserted = blank = 0
         lines: dict[str, int] = {}
+        inserts = scratch / "insert.nq"
         with open(inserts, "wb") as out:
-            for name, path in new.items():
+            for k, (name, path) in enumerate(new.items()):
                 node = ox.NamedNode(name)
                 suffix = b" <" + name.encode("utf-8") + b"> .\n"
-                unmatched = _line_set(old.get(name))  # old lines no new line has matched yet
+                gone = scratch / f"gone{k}.nt"
                 count = 0
-                for line in _lines(path):
-                    count += 1
-                    if b"_:" in line:
-                        line = relabel(line)
-                    if line in unmatched:
-                        unmatched.remove(line)  # a graph's lines are distinct, so are relabelled ones
-                    else:
-                        out.write(line[:-3] + suffix)  # each line ends " .\n"
-                        inserted += 1
-                        blank += _has_blank(line)
+                with open(gone, "wb") as gone_out:
+                    for old_part, new_lines in _compared_parts(old.get(name), path, match.relabel, scratch / f"part{k}"):
+                        unmatched = _line_set(old_part)  # old lines no new line has matched yet
+                        for line in new_lines:
+                            count += 1
+                            if line in unmatched:
+                                unmatched.remove(line)  # a graph's lines are distinct, so are relabelled ones
+                            else:
+                                out.write(line[:-3] + suffix)  # each line ends " .\n"
+                                inserted += 1
+                                blank += _has_blank(line)
+                        deleted += len(unmatched)
+                        gone_out.writelines(unmatched)
+                        del unmatched
                 lines[name] = count
-                gone = list(unmatched)
-                del unmatched
                 self._delete_lines(node, gone)
-                deleted += len(gone)
-                del gone
+                gone.unlink()
                 if path is None:
                     self._db.remove_graph(node)
                 elif not self.has_graph(name):
@@ -840,19 +856,21 @@ class GraphStore:
                                 "blank nodes kept": len(match.renamed)}
         return lines
 
-    def _delete_lines(self, node: ox.NamedNode, lines: list[bytes]) -> None:
-        """Delete the N-Triples ``lines`` (as Oxigraph dumped them) from graph ``node``: ground
-        ones by ``DELETE DATA`` in requests of :data:`DELETE_LINES`, the ones with a blank node
-        (which SPARQL cannot name) parsed with their labels kept and removed one by one."""
-        ground: list[bytes] = []
-        blank: list[bytes] = []
-        for line in lines:
-            (blank if _has_blank(line) else ground).append(line)
-        for i in range(0, len(ground), DELETE_LINES):
-            body = b"".join(ground[i:i + DELETE_LINES]).decode("utf-8")
-            self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {body} }} }}")
-        for triple in ox.parse(b"".join(blank), format=ox.RdfFormat.N_TRIPLES):
-            self._db.remove(ox.Quad(triple.subject, triple.predicate, triple.object, node))
+    def _delete_lines(self, node: ox.NamedNode, path: Path) -> None:
+        """Delete the N-Triples lines of the file ``path`` (as Oxigraph dumped them) from graph
+        ``node``, :data:`DELETE_LINES` at a time: ground ones by ``DELETE DATA``, the ones with a
+        blank node (which SPARQL cannot name) parsed with their labels kept and removed one by
+        one."""
+        with open(path, "rb") as fh:
+            while batch := list(itertools.islice(fh, DELETE_LINES)):
+                ground: list[bytes] = []
+                blank: list[bytes] = []
+                for line in batch:
+                    (blank if _has_blank(line) else ground).append(line)
+                if ground:
+                    self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {b''.join(ground).decode('utf-8')} }} }}")
+                for triple in ox.parse(b"".join(blank), format=ox.RdfFormat.N_TRIPLES):
+                    self._db.remove(ox.Quad(triple.subject, triple.predicate, triple.object, node))
 
     def _insert(self, path: Path, graph: str | None = None) -> None:
         """Add the N-Quads file ``path`` (N-Triples into ``graph`` when one is given), its blank
@@ -894,27 +912,30 @@ class GraphStore:
             counts = self._db.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o }} }} GROUP BY ?p")
             work += [(node, str(row[0]), int(row[1].value)) for row in counts]  # type: ignore[union-attr]
             del counts  # a query's rows hold the database open
-        self._unflushed = 0
         with ThreadPoolExecutor(LOAD_THREADS) as pool:
-            list(pool.map(self._delete_predicate, sorted(work, key=lambda b: -b[2])))
+            for k, part in enumerate(_delete_rounds(work, FLUSH_DELETES, LOAD_THREADS)):
+                if k:
+                    self._flush()
+                list(pool.map(self._delete_predicate, part))
         self._deletes_logged = True
         for node in nodes:
             self._db.remove_graph(node)  # the name, and any quad added since the count
 
+    def _flush(self) -> None:
+        """Write the database's memory tables to disk, between two rounds of batched deletes.
+
+        Never while a delete runs on another thread: RocksDB's manual flush then sometimes
+        waits forever for a flush that is never scheduled (seen here in 4 of 20 runs of the
+        batched-delete test, flushing from the deleting threads: background threads idle, the
+        flushing one in ``DBImpl::WaitForFlushMemTables``)."""
+        self._db.flush()
+
     def _delete_predicate(self, item: tuple[ox.NamedNode, str, int]) -> None:
-        """Delete the ``n`` quads of one predicate in one graph, in batches; the database's
-        memory tables are flushed every :data:`FLUSH_DELETES` deleted quads (all threads)."""
+        """Delete ``n`` quads of one predicate in one graph, :data:`DELETE_BATCH` a transaction."""
         node, predicate, n = item
-        for k in range(-(-n // DELETE_BATCH)):
-            with self._flush_lock:
-                self._unflushed += min(DELETE_BATCH, n - k * DELETE_BATCH)
-                due = self._unflushed >= FLUSH_DELETES
-                if due:
-                    self._unflushed = 0
-            if due:
-                self._db.flush()
+        for done in range(0, n, DELETE_BATCH):
             self._db.update(f"DELETE {{ GRAPH {node} {{ ?s {predicate} ?o }} }} WHERE {{ {{ SELECT ?s ?o WHERE "
-                            f"{{ GRAPH {node} {{ ?s {predicate} ?o }} }} LIMIT {DELETE_BATCH} }} }}")
+                            f"{{ GRAPH {node} {{ ?s {predicate} ?o }} }} LIMIT {min(DELETE_BATCH, n - done)} }} }}")
 
     def _rebuild_without(self, dropped: set[str], progress: Callable[[int, int], None] | None = None) -> None:
         """Replace ``work/`` by a fresh database holding every graph but ``dropped``.
@@ -1275,6 +1296,68 @@ def _lines(path: Path | None) -> Iterator[bytes]:
         return
     with open(path, "rb") as fh:
         yield from fh
+
+
+def _delete_rounds(work: list[tuple[ox.NamedNode, str, int]], budget: int,
+                   threads: int) -> list[list[tuple[ox.NamedNode, str, int]]]:
+    """Split the deletes ``work`` -- (graph, predicate, quads) -- into rounds of at most
+    ``budget`` quads, the database flushed between rounds (see :data:`FLUSH_DELETES`). A round
+    holds a predicate of a graph at most once (two deletes of the same quads at once would
+    conflict) and a share of at most ``budget / threads`` of it (the threads stay busy), the
+    largest first."""
+    share = max(1, budget // threads)
+    left = {(node, predicate): n for node, predicate, n in sorted(work, key=lambda w: -w[2]) if n > 0}
+    rounds: list[list[tuple[ox.NamedNode, str, int]]] = []
+    while left:
+        part: list[tuple[ox.NamedNode, str, int]] = []
+        room = budget
+        for (node, predicate), n in sorted(left.items(), key=lambda kv: -kv[1]):
+            take = min(n, share, room)
+            if take <= 0:
+                break
+            part.append((node, predicate, take))
+            room -= take
+            if n == take:
+                del left[(node, predicate)]
+            else:
+                left[(node, predicate)] = n - take
+        rounds.append(part)
+    return rounds
+
+
+def _compared_parts(old: Path | None, new: Path | None, relabel: Callable[[bytes], bytes],
+                    scratch: Path) -> Iterator[tuple[Path | None, Iterator[bytes]]]:
+    """The old and the new N-Triples file of one graph as pairs of (old lines, new lines
+    relabelled) to compare with each other, each pair small enough to hold the old lines in a
+    set: the files whole when the old one has at most :data:`COMPARE_BYTES`, else parts of
+    both split by a hash of each (relabelled) line, written under ``scratch`` and removed
+    once compared. Equal lines fall into the same part."""
+    size = old.stat().st_size if old is not None else 0
+    parts = -(-size // COMPARE_BYTES)
+    if parts <= 1:
+        yield old, (relabel(line) if b"_:" in line else line for line in _lines(new))
+        return
+    scratch.mkdir()
+    olds = _split_lines(_lines(old), parts, scratch / "old")
+    news = _split_lines((relabel(line) if b"_:" in line else line for line in _lines(new)), parts, scratch / "new")
+    for old_part, new_part in zip(olds, news, strict=True):
+        yield old_part, _lines(new_part)
+        old_part.unlink()
+        new_part.unlink()
+
+
+def _split_lines(lines: Iterable[bytes], parts: int, stem: Path) -> list[Path]:
+    """Write ``lines`` to ``parts`` files named after ``stem``, each line to the file its hash
+    chooses (a hash of this process: both versions are split in it)."""
+    paths = [stem.with_name(f"{stem.name}{k}.nt") for k in range(parts)]
+    files = [open(path, "wb", buffering=1 << 20) for path in paths]
+    try:
+        for line in lines:
+            files[hash(line) % parts].write(line)
+    finally:
+        for fh in files:
+            fh.close()
+    return paths
 
 
 def _line_set(path: Path | None) -> set[bytes]:
