@@ -564,3 +564,26 @@ def test_deletes_are_split_into_rounds_of_distinct_predicates() -> None:
             totals[(node, p)] = totals.get((node, p), 0) + n
     assert totals == {(g, "<urn:a>"): 23, (g, "<urn:b>"): 4, (h, "<urn:a>"): 7}
     assert len(rounds) == 5  # 34 quads; the last ones are all one predicate's
+
+
+def test_large_additions_inside_a_load_go_in_bounded_calls(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A bulk addition of N-Triples text is split at line ends into calls of about BATCH_CHARS
+    characters, and many quads go through the bulk loader in calls: every triple arrives, and a
+    blank node keeps its identity across calls (the derived layer shares list cells)."""
+    from stepnc_graph.store import _line_pieces
+
+    text = "".join(f"<urn:s{k}> <urn:p> \"{k}\" .\n" for k in range(200))
+    pieces = list(_line_pieces(text, 100))
+    assert "".join(pieces) == text and len(pieces) > 10 and all(p.endswith(" .\n") for p in pieces)
+    monkeypatch.setattr(store_module, "BATCH_CHARS", 100)
+    monkeypatch.setattr(store_module, "TRANSACTION_QUADS", 3)
+    monkeypatch.setattr(store_module, "INSERT_BATCH", 4)
+    cell = ox.BlankNode()
+    with sg.open_store(tmp_path / "s") as s:
+        s.add_ntriples("urn:g", text, bulk=True)
+        s.add_quads([ox.Quad(cell, ox.NamedNode("urn:i"), ox.Literal(str(k)), ox.NamedNode("urn:h")) for k in range(10)])
+        s.add_quads([ox.Quad(cell, ox.NamedNode("urn:j"), ox.Literal("x"), ox.NamedNode("urn:g"))])
+        assert s.count("urn:g") == 201 and s.count("urn:h") == 10
+        rows = s.query("SELECT (COUNT(DISTINCT ?b) AS ?n) WHERE { GRAPH <urn:g> { ?b <urn:j> ?x } "
+                       "GRAPH <urn:h> { ?b <urn:i> ?y } }")
+        assert int(next(iter(rows))[0].value) == 1

@@ -132,6 +132,9 @@ STAGE_IN_MEMORY_QUADS = 3_000_000
 COMPARE_BYTES = 256 << 20
 #: quads per bulk call when a replacement by difference inserts what changed
 INSERT_BATCH = 250_000
+#: quads that :meth:`GraphStore.add_quads` writes in one transaction (more go through the bulk
+#: loader: one bulk call costs about 0.1 s whatever its size, a transaction 4 µs a quad)
+TRANSACTION_QUADS = 25_000
 #: quads per DELETE DATA request of a replacement by difference
 DELETE_LINES = 20_000
 #: an N-Triples line whose object is a blank node (Oxigraph writes " .\n" at the end of a line;
@@ -792,7 +795,10 @@ class GraphStore:
         if staged.contains_named_graph(vocabulary) and self._count_in(staged, VOCABULARY_GRAPH) != seeded:
             names = [*names, VOCABULARY_GRAPH]
             old[VOCABULARY_GRAPH] = self._dump_graph(self._db, VOCABULARY_GRAPH, scratch / "old-vocabulary.nt")
-        new = {name: self._dump_graph(staged, name, scratch / f"new{k}.nt") for k, name in enumerate(names)}
+        _give_back_freed_memory()  # what completing the graph took, before its dump
+        with ThreadPoolExecutor(LOAD_THREADS) as pool:  # the dumps release the GIL: the graphs side by side
+            paths = pool.map(lambda k: self._dump_graph(staged, names[k], scratch / f"new{k}.nt"), range(len(names)))
+            new = dict(zip(names, paths, strict=True))
         return new, old
 
     @staticmethod
@@ -1085,9 +1091,20 @@ class GraphStore:
         with ``bulk`` through Oxigraph's bulk loader (faster for many, not transactional: the load
         around it is)."""
         if bulk or len(text) > DIRECT_CHARS:
-            self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
+            for piece in _line_pieces(text, BATCH_CHARS):  # the bulk loader's memory grows with a call
+                self._db.bulk_load(piece.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
         else:
             self._db.load(text, ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
+
+    def add_quads(self, quads: list[ox.Quad]) -> None:
+        """Add ``quads`` (for use inside ``before_commit``): a few in one transaction, many
+        through the bulk loader in calls of :data:`INSERT_BATCH` (a transaction holds all of its
+        quads in memory, several times their size)."""
+        if len(quads) <= TRANSACTION_QUADS:
+            self._db.extend(quads)
+        else:
+            for _ in _extend_in_calls(self._db, iter(quads), INSERT_BATCH):
+                pass
 
     def add_turtle(self, graph: str, text: str) -> None:
         """Add a Turtle document to ``graph`` (inside ``before_commit``, like :meth:`add_ntriples`):
@@ -1323,6 +1340,16 @@ def _delete_rounds(work: list[tuple[ox.NamedNode, str, int]], budget: int,
                 left[(node, predicate)] = n - take
         rounds.append(part)
     return rounds
+
+
+def _line_pieces(text: str, size: int) -> Iterator[str]:
+    """``text`` (lines) in pieces of about ``size`` characters, each ending at the end of a line."""
+    start = 0
+    while start < len(text):
+        end = text.find("\n", start + size)
+        end = len(text) if end < 0 else end + 1
+        yield text[start:end]
+        start = end
 
 
 def _compared_parts(old: Path | None, new: Path | None, relabel: Callable[[bytes], bytes],
