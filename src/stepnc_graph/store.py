@@ -44,8 +44,9 @@ back at once; whichever costs less by those figures. Beside other programs an un
 costs 1.1-1.6 loads of the same program (the deletes and a compaction of the whole
 database, about half each). A replacement there writes only what changed
 (:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
-one costs 0.8-1.1 loads, where deleting the old version and loading the new one cost
-2.1-2.5 (100k instances beside three such programs, measured). The deletes' write-ahead log is dropped at once
+one costs 0.8-1.25 loads, where deleting the old version and loading the new one cost
+2.1-2.5 (100k instances beside three such programs, measured); a program of 1M instances
+is staged on disk and costs about 1.6 loads (see docs/loading.md). The deletes' write-ahead log is dropped at once
 (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed quads used
 stay until :meth:`GraphStore.compact` rebuilds the database.
 
