@@ -739,10 +739,8 @@ class GraphStore:
         shutil.rmtree(scratch, ignore_errors=True)
         scratch.mkdir()
         try:
-            staged = ox.Store() if in_memory else ox.Store(str(scratch / "staged"))
-            new, old = self._stage(staged, graph, chunks, before_commit, [graph, *companions], scratch, in_memory)
-            del staged  # the peak of an in-memory replacement; on disk, its files go with the scratch
-            _give_back_freed_memory()
+            new, old = self._stage(graph, chunks, before_commit, [graph, *companions], scratch, in_memory)
+            _give_back_freed_memory()  # the staged store was the peak of an in-memory replacement
             shutil.rmtree(scratch / "staged", ignore_errors=True)
             self.last_removal = "difference"
             staged_counts = self._apply_difference(old, new, _BlankMatch(old[graph], new[graph]), scratch)
@@ -756,13 +754,14 @@ class GraphStore:
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
 
-    def _stage(self, staged: ox.Store, graph: str, chunks: Iterable[Chunk],
-               before_commit: Callable[[Callable[[str], str]], None] | None, names: list[str], scratch: Path,
-               in_memory: bool) -> tuple[dict[str, Path | None], dict[str, Path | None]]:
-        """Load the new version of ``graph`` into ``staged`` and complete it there, while the old
-        version of the graphs ``names`` is written out; then write the new version out. Returns
-        the N-Triples files of the new and of the old version, graph by graph (None: no such
-        graph); the vocabulary graph is among them when the load rewrote it."""
+    def _stage(self, graph: str, chunks: Iterable[Chunk], before_commit: Callable[[Callable[[str], str]], None] | None,
+               names: list[str], scratch: Path, in_memory: bool) -> tuple[dict[str, Path | None], dict[str, Path | None]]:
+        """Load the new version of ``graph`` into a store of its own (in memory, or in
+        ``scratch/staged``) and complete it there, while the old version of the graphs ``names``
+        is written out; then write the new version out. Returns the N-Triples files of the new
+        and of the old version, graph by graph (None: no such graph); the vocabulary graph is
+        among them when the load rewrote it. The staged store is dropped on return."""
+        staged = ox.Store() if in_memory else ox.Store(str(scratch / "staged"))
         vocabulary = ox.NamedNode(VOCABULARY_GRAPH)
         staged.extend(self._db.quads_for_pattern(vocabulary, None, None, vocabulary))
         seeded = len(staged)
@@ -1324,7 +1323,7 @@ def _delete_rounds(work: list[tuple[ox.NamedNode, str, int]], budget: int,
     conflict) and a share of at most ``budget / threads`` of it (the threads stay busy), the
     largest first."""
     share = max(1, budget // threads)
-    left = {(node, predicate): n for node, predicate, n in sorted(work, key=lambda w: -w[2]) if n > 0}
+    left = {(node, predicate): n for node, predicate, n in work if n > 0}
     rounds: list[list[tuple[ox.NamedNode, str, int]]] = []
     while left:
         part: list[tuple[ox.NamedNode, str, int]] = []
@@ -1362,12 +1361,13 @@ def _compared_parts(old: Path | None, new: Path | None, relabel: Callable[[bytes
     once compared. Equal lines fall into the same part."""
     size = old.stat().st_size if old is not None else 0
     parts = -(-size // COMPARE_BYTES)
+    relabelled = (relabel(line) if b"_:" in line else line for line in _lines(new))  # the test saves a call a line
     if parts <= 1:
-        yield old, (relabel(line) if b"_:" in line else line for line in _lines(new))
+        yield old, relabelled
         return
     scratch.mkdir()
     olds = _split_lines(_lines(old), parts, scratch / "old")
-    news = _split_lines((relabel(line) if b"_:" in line else line for line in _lines(new)), parts, scratch / "new")
+    news = _split_lines(relabelled, parts, scratch / "new")
     for old_part, new_part in zip(olds, news, strict=True):
         yield old_part, _lines(new_part)
         old_part.unlink()
