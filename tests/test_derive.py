@@ -322,3 +322,41 @@ def test_a_load_without_the_layer_writes_the_same_program_graph(program: Path, m
 
     assert named(without) == named(with_layer) and without.count(r.graph) == with_layer.count(r.graph)
     assert r2.triples == r.triples and [d.code for d in r2.diagnostics] == [d.code for d in r.diagnostics]
+
+
+def test_a_layer_written_in_pieces_is_the_layer_written_whole(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The layer's text goes to the store in pieces and its blank-node quads in bounded calls (so a
+    program of 1M instances does not hold them all): cut small here, the program and its layer are
+    the same graphs as one cut large, blank nodes shared between the two included."""
+    import rdflib
+    from rdflib.compare import isomorphic
+
+    from stepnc_graph import derive as derive_module
+    from stepnc_graph import store as store_module
+
+    RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")  # the two loads' timestamps are equal
+
+    def loaded(name: str) -> tuple[rdflib.Graph, int]:
+        with sg.open_store(tmp_path / name) as store:
+            [r] = sg.load(store, [EXAMPLE])
+            both = rdflib.Graph()  # the program and its layer in one graph: shared nodes stay shared
+            for graph, mark in ((r.graph, ""), (derived_graph_iri(r.graph), "-derived")):
+                for t in rdflib.Graph().parse(data=sg.export(store, "nt", graph).decode(), format="nt"):
+                    both.add((t[0], rdflib.URIRef(str(t[1]) + mark), t[2]))
+            return both, r.derived_triples
+
+    whole, whole_count = loaded("whole")
+    monkeypatch.setattr(derive_module, "TEXT_PIECE", 300)
+    monkeypatch.setattr(store_module, "TRANSACTION_QUADS", 3)
+    monkeypatch.setattr(store_module, "INSERT_BATCH", 5)
+    pieces, pieces_count = loaded("pieces")
+    layer_of = rdflib.URIRef(ANALYSIS_NS + "layerOf-derived")
+    step = rdflib.URIRef(ANALYSIS_NS + "ExecutionStep")
+    for layer in (whole, pieces):  # the last line written, and every step of the order (see the order test)
+        assert len(list(layer.triples((None, layer_of, None)))) == 1
+        assert len(list(layer.triples((None, rdflib.URIRef(RDF_TYPE + "-derived"), step)))) == 8
+    assert pieces_count == whole_count and len(pieces) == len(whole)
+    assert any(isinstance(s, rdflib.BNode) for s, p, _ in pieces if str(p).endswith("index-derived"))
+    assert isomorphic(pieces, whole)

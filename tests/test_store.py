@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import pyoxigraph as ox
@@ -579,11 +579,19 @@ def test_large_additions_inside_a_load_go_in_bounded_calls(tmp_path: Path, monke
     monkeypatch.setattr(store_module, "TRANSACTION_QUADS", 3)
     monkeypatch.setattr(store_module, "INSERT_BATCH", 4)
     cell = ox.BlankNode()
+
+    def quads(n: int, graph: str) -> Iterator[ox.Quad]:  # a generator: add_quads pulls one at a time
+        return (ox.Quad(cell, ox.NamedNode("urn:i"), ox.Literal(str(k)), ox.NamedNode(graph)) for k in range(n))
+
     with sg.open_store(tmp_path / "s") as s:
         s.add_ntriples("urn:g", text, bulk=True)
-        s.add_quads([ox.Quad(cell, ox.NamedNode("urn:i"), ox.Literal(str(k)), ox.NamedNode("urn:h")) for k in range(10)])
-        s.add_quads([ox.Quad(cell, ox.NamedNode("urn:j"), ox.Literal("x"), ox.NamedNode("urn:g"))])
+        assert s.add_quads(quads(10, "urn:h")) == 10  # bulk calls of 4, 4 and 2
+        assert s.add_quads(quads(4, "urn:t4")) == 4  # one more than a transaction takes: bulk
+        assert s.add_quads(quads(3, "urn:t3")) == 3  # a transaction
+        assert s.add_quads(quads(0, "urn:t0")) == 0
+        assert s.add_quads([ox.Quad(cell, ox.NamedNode("urn:j"), ox.Literal("x"), ox.NamedNode("urn:g"))]) == 1
         assert s.count("urn:g") == 201 and s.count("urn:h") == 10
+        assert (s.count("urn:t4"), s.count("urn:t3"), s.has_graph("urn:t0")) == (4, 3, False)
         rows = s.query("SELECT (COUNT(DISTINCT ?b) AS ?n) WHERE { GRAPH <urn:g> { ?b <urn:j> ?x } "
                        "GRAPH <urn:h> { ?b <urn:i> ?y } }")
         assert int(next(iter(rows))[0].value) == 1

@@ -43,8 +43,9 @@ are generic values that are blank nodes.
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING
@@ -74,6 +75,8 @@ RDF_TYPE = f"<{RDF_NS}type>"
 RDF_FIRST = ox.NamedNode(RDF_NS + "first")
 RDF_REST = ox.NamedNode(RDF_NS + "rest")
 XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
+#: characters of layer text per bulk-load call: the store's own batch (see store.BATCH_CHARS)
+TEXT_PIECE = 12_000_000
 
 #: Program structures whose members run in a given order (a LIST) or in no
 #: stated order (a SET: flattened in #id order), and single-valued branches.
@@ -278,13 +281,15 @@ class Lists:
     def members(self, head: Term) -> list[Term]:
         return [self.first[cell] for cell in self._chain(head)]
 
-    def index_quads(self, graph: ox.NamedNode) -> list[ox.Quad]:
-        """``sga:index`` on every cell, counted from each list's head."""
+    def index_quads(self, graph: ox.NamedNode) -> Iterator[ox.Quad]:
+        """``sga:index`` on every cell, counted from each list's head (one at a time: a program
+        of 1M instances has some 240k cells)."""
         tails = set(self.rest.values())
         index = ox.NamedNode(ANALYSIS_NS + "index")
-        return [ox.Quad(cell, index, ox.Literal(position), graph)  # type: ignore[arg-type]
-                for head in self.first if head not in tails
-                for position, cell in enumerate(self._chain(head), start=1)]
+        for head in self.first:
+            if head not in tails:
+                for position, cell in enumerate(self._chain(head), start=1):
+                    yield ox.Quad(cell, index, ox.Literal(position), graph)  # type: ignore[arg-type]
 
 
 @dataclass
@@ -384,8 +389,8 @@ class ExecutionOrder:
             self._walk(child, node, setup, root, stack)
         stack.pop()
 
-    def triples(self, graph: str) -> list[str]:
-        out = []
+    def triples(self, graph: str) -> Iterator[str]:
+        """The N-Triples lines of the execution steps, one at a time."""
         iri = [f"<{execution_step_iri(graph, s.order)}>" for s in self.steps]
         cls = _sga("ExecutionStep")
         order, executes, workplan, setup, nxt, tool, before = (
@@ -393,33 +398,34 @@ class ExecutionOrder:
         spindle: Term | None = None  # the tool of the last step that had one
         for i, s in enumerate(self.steps):
             me = iri[i]
-            out += [f"{me} {RDF_TYPE} {cls} .\n", f"{me} {order} {_integer(s.order)} .\n",
-                    f"{me} {executes} {s.workingstep} .\n"]
+            yield f"{me} {RDF_TYPE} {cls} .\n"
+            yield f"{me} {order} {_integer(s.order)} .\n"
+            yield f"{me} {executes} {s.workingstep} .\n"
             if s.workplan is not None:
-                out.append(f"{me} {workplan} {s.workplan} .\n")
+                yield f"{me} {workplan} {s.workplan} .\n"
             if s.setup is not None:
-                out.append(f"{me} {setup} {s.setup} .\n")
+                yield f"{me} {setup} {s.setup} .\n"
             if i > 0 and self.steps[i - 1].root != s.root:
                 spindle = None  # another project: its first tool is a load, not a change
             if spindle is not None:
-                out.append(f"{me} {before} {spindle} .\n")
+                yield f"{me} {before} {spindle} .\n"
             used = self.tool.get(s.workingstep)
             if isinstance(used, ox.NamedNode):
-                out.append(f"{me} {tool} {used} .\n")
+                yield f"{me} {tool} {used} .\n"
                 spindle = used
             if i + 1 < len(self.steps) and self.steps[i + 1].root == s.root:
-                out.append(f"{me} {nxt} {iri[i + 1]} .\n")
-        return out
+                yield f"{me} {nxt} {iri[i + 1]} .\n"
 
-    def feature_triples(self) -> list[str]:
+    def feature_triples(self) -> Iterator[str]:
+        """``sga:feature`` from each workingstep to the features it machines, one line at a time."""
         feature = _sga("feature")
-        out = []
         for node in sorted(self.kind, key=lambda n: self.ids[n]):
             single = self.one(node, "machining_workingstep.its_feature")
             many = self.one(node, "turning_workingstep.its_features")
             targets = ([single] if single is not None else []) + (self.lists.members(many) if many else [])
-            out += [f"{node} {feature} {t} .\n" for t in targets if isinstance(t, ox.NamedNode)]
-        return out
+            for t in targets:
+                if isinstance(t, ox.NamedNode):
+                    yield f"{node} {feature} {t} .\n"
 
 
 # -- writing -------------------------------------------------------------------
@@ -453,23 +459,48 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     order = ExecutionOrder(reader, rules, lists)
     steps = order.flatten()
     node = ox.NamedNode(target(layer))
-    text = "".join(order.triples(graph) + order.feature_triples() + [f"<{layer}> {_sga('layerOf')} <{graph}> .\n"])
-    constructed = reader.construct(rules.construct) if mapped is None else b""
-    # A bulk load for the text (each bulk load call costs ~0.1 s of file ingestion
-    # on disk, whatever its size) and a plain transaction for the quads that hold blank
-    # nodes when they are few (measured: 8 ms for 2000 quads, against 110 ms in bulk).
-    store.add_ntriples(node.value, constructed.decode("utf-8") + text, bulk=True)
+    written = 0
+    if mapped is None:  # no mapper wrote the closure, generic values and labels: find them
+        written += _write_text(store, node.value, reader.construct(rules.construct).decode("utf-8").splitlines(True))
+    # Text through the bulk loader, in pieces (each bulk load call costs ~0.1 s of file
+    # ingestion on disk, whatever its size, and holds memory in proportion to it); the lines
+    # are made as they are written (a program of 1M instances has ~300k of them here).
+    written += _write_text(store, node.value, itertools.chain(
+        order.triples(graph), order.feature_triples(), [f"<{layer}> {_sga('layerOf')} <{graph}> .\n"]))
+    del order
     from stepnc_graph.store import GraphStore
 
     if isinstance(store, GraphStore):
-        quads = lists.index_quads(node) + [ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values)]
-        store.add_quads(quads)
-        written = len(quads)
+        # The quads that hold blank nodes go as quads (a blank node has no name SPARQL or a
+        # second text could give it), streamed: in one transaction when few, else in bulk calls
+        written += store.add_quads(lists.index_quads(node))
+        del lists  # the cells: the largest part of this function's memory
+        written += store.add_quads(ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values))
     else:  # a remote store: blank nodes cannot be named across requests, so the store copies them
         before = store.count(node.value)
         store.update(_blank_updates(rules, target(graph), node.value))
-        written = store.count(node.value) - before
-    return DerivedLayer(layer, (mapped or 0) + constructed.count(b"\n") + text.count("\n") + written, steps)
+        written += store.count(node.value) - before
+    return DerivedLayer(layer, (mapped or 0) + written, steps)
+
+
+def _write_text(store: Store, graph: str, lines: Iterable[str], piece: int = TEXT_PIECE) -> int:
+    """Add N-Triples ``lines`` to ``graph`` through the store's bulk loader, in pieces of about
+    ``piece`` characters; returns how many lines were written."""
+    count = 0
+    buffer: list[str] = []
+    size = 0
+    for line in lines:
+        buffer.append(line)
+        size += len(line)
+        if size >= piece:
+            store.add_ntriples(graph, "".join(buffer), bulk=True)
+            count += len(buffer)
+            buffer.clear()
+            size = 0
+    if buffer:
+        store.add_ntriples(graph, "".join(buffer), bulk=True)
+        count += len(buffer)
+    return count
 
 
 def _blank_updates(rules: DeriveRules, source: str, layer: str) -> str:

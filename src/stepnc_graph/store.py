@@ -1096,15 +1096,17 @@ class GraphStore:
         else:
             self._db.load(text, ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
 
-    def add_quads(self, quads: list[ox.Quad]) -> None:
-        """Add ``quads`` (for use inside ``before_commit``): a few in one transaction, many
-        through the bulk loader in calls of :data:`INSERT_BATCH` (a transaction holds all of its
-        quads in memory, several times their size)."""
-        if len(quads) <= TRANSACTION_QUADS:
-            self._db.extend(quads)
-        else:
-            for _ in _extend_in_calls(self._db, iter(quads), INSERT_BATCH):
-                pass
+    def add_quads(self, quads: Iterable[ox.Quad]) -> int:
+        """Add ``quads`` (for use inside ``before_commit``), pulled one at a time: up to
+        :data:`TRANSACTION_QUADS` in one transaction, more through the bulk loader in calls of
+        :data:`INSERT_BATCH` (a transaction holds all of its quads in memory, several times
+        their size). Returns how many were added."""
+        it = iter(quads)
+        first = list(itertools.islice(it, TRANSACTION_QUADS + 1))
+        if len(first) <= TRANSACTION_QUADS:
+            self._db.extend(first)
+            return len(first)
+        return sum(_extend_in_calls(self._db, itertools.chain(first, it), INSERT_BATCH))
 
     def add_turtle(self, graph: str, text: str) -> None:
         """Add a Turtle document to ``graph`` (inside ``before_commit``, like :meth:`add_ntriples`):
