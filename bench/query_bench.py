@@ -2,8 +2,18 @@
 
     pip install -e '.[bench]' && python bench/query_bench.py                 # 100k instances
     python bench/query_bench.py --sizes 100000 1000000 --rdflib-max 100000     # add 1M (Oxigraph only)
+    python bench/query_bench.py --programs replicated --copies 3 --load-repeat 0 --rdflib-max 0
+    mkdir /tmp/before && git archive HEAD~1 queries | tar -x -C /tmp/before   # an earlier library ...
+    python bench/query_bench.py --baseline /tmp/before/queries                # ... timed beside this one
 
-For each size, on one program written by bench/generate.py and in one run:
+For each size and program, in one run. The programs (``--programs``, default both) are those of
+bench/generate.py: ``generated`` (``write()``: a turning program of one setup and a few tools,
+geometry-heavy) and ``replicated`` (``replicate()`` of a real program, the shipped two-setup shaft
+unless ``--real`` names another: copies of it renumbered, so the store holds a setup and its tools
+for every copy -- 2,248 setups and tools at 100k instances -- and about five times the
+generated program's workingsteps per instance). ``--copies N`` loads N copies of the program
+under different graph IRIs (the first under the file's own), so the queries run on a store
+holding several programs; the load figures stay those of one program.
 
 * **load**: the end-to-end load into an on-disk store with the derived layer, and the same load with
   the derivation switched off (the vocabulary graph already in the store in both), each in a fresh
@@ -17,7 +27,16 @@ For each size, on one program written by bench/generate.py and in one run:
   an rdflib in-memory ``Dataset`` holding the same quads (the file's graph as a named graph, its
   derived layer and the vocabulary in the default graph, union default on: the semantics Oxigraph
   gets), with a per-query time limit; the ratio; and whether the targets (<= 100 ms median at 100k
-  instances, <= 1 s at 1M, >= 20x rdflib) are met. Row counts of both engines are compared.
+  instances, <= 1 s at 1M, >= 20x rdflib; for one program: with ``--copies`` above 1 the figures
+  are reported, not judged) are met. Row counts of both engines are compared. rdflib runs when
+  the store holds at most ``--rdflib-max`` instances in all.
+* with ``--baseline DIR`` (a directory of ``.rq`` files, e.g. an earlier ``queries/``): each query
+  of that library too, alternating with the current one query by query, each in its own process;
+  the two results' SPARQL JSON are compared byte for byte (same rows in the same order).
+
+Each library's query runs in a child process: a run over ``--query-timeout`` seconds is stopped
+and reported as ``>limit`` with the child's CPU time when stopped (start-up included) in
+parentheses; a query over 30 s in its warm-up is timed once, not ``--repeat`` times.
 
 The machine is shared: read CPU seconds beside wall seconds.
 """
@@ -25,8 +44,10 @@ The machine is shared: read CPU seconds beside wall seconds.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
+import select
 import shutil
 import signal
 import statistics
@@ -40,9 +61,11 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from generate import write  # noqa: E402
+from generate import replicate, write  # noqa: E402
 
 EXAMPLE = HERE.parent / "examples" / "shaft_two_setups.stp"
+#: A warm-up over this many seconds: the query is timed once instead of ``--repeat`` times.
+SLOW = 30.0
 #: A query variant every generated workingstep matches (the default grooving_tool matches none).
 VARIANTS = [("workingsteps-by-tool-type", {"tool_type": "general_turning_tool"})]
 
@@ -50,8 +73,9 @@ VARIANTS = [("workingsteps-by-tool-type", {"tool_type": "general_turning_tool"})
 # -- children (one measurement per process) ---------------------------------------------------------
 
 
-def child_load(path: str, store_dir: str, derive: str) -> None:
-    """Load ``path`` into a store that already holds the vocabulary; print seconds as JSON."""
+def child_load(path: str, store_dir: str, derive: str, graph: str | None = None) -> None:
+    """Load ``path`` (under ``graph``, else its own graph IRI) into a store that already holds the
+    vocabulary; print seconds as JSON."""
     import stepnc_graph as sg
     import stepnc_graph.loader as loader
     from stepnc_graph.derive import iso14649_rules
@@ -76,14 +100,15 @@ def child_load(path: str, store_dir: str, derive: str) -> None:
         ensure_vocabulary(store)  # a store gets it once, with its first load
         vocabulary = time.perf_counter() - started
         wall, cpu = time.perf_counter(), time.process_time()
-        [result] = sg.load(store, [path])
+        [result] = sg.load(store, [path], base_iri=graph)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     print(json.dumps({"wall": wall, "cpu": cpu, "instances": result.instances, "triples": result.triples,
                       "derived": result.derived_triples, "vocabulary": vocabulary}))
 
 
-def child_rdflib(store_dir: str, graph: str, timeout: float, names: list[str]) -> None:
-    """Run the library on an rdflib Dataset holding the store's quads; print one JSON line per query."""
+def child_rdflib(store_dir: str, graphs: str, timeout: float, names: list[str]) -> None:
+    """Run the library on an rdflib Dataset holding the store's quads (``graphs``: the programs'
+    graph IRIs, comma-separated); print one JSON line per query."""
     import rdflib
     import pyoxigraph as ox
 
@@ -94,10 +119,13 @@ def child_rdflib(store_dir: str, graph: str, timeout: float, names: list[str]) -
     started = time.perf_counter()
     ds = rdflib.Dataset(default_union=True)
     with GraphStore(store_dir) as store:
-        file_graph = ds.graph(rdflib.URIRef(graph))
-        file_graph.parse(data=store.dump(ox.RdfFormat.N_TRIPLES, graph).decode(), format="nt")
-        for other in (derived_graph_iri(graph), "https://w3id.org/stepnc-graph/iso14649"):
-            ds.default_graph.parse(data=store.dump(ox.RdfFormat.N_TRIPLES, other).decode(), format="nt")
+        for graph in graphs.split(","):
+            file_graph = ds.graph(rdflib.URIRef(graph))
+            file_graph.parse(data=store.dump(ox.RdfFormat.N_TRIPLES, graph).decode(), format="nt")
+            ds.default_graph.parse(data=store.dump(ox.RdfFormat.N_TRIPLES, derived_graph_iri(graph)).decode(),
+                                   format="nt")
+        ds.default_graph.parse(data=store.dump(ox.RdfFormat.N_TRIPLES, "https://w3id.org/stepnc-graph/iso14649")
+                               .decode(), format="nt")
     print(json.dumps({"loaded": time.perf_counter() - started, "quads": len(ds)}), flush=True)
 
     def alarm(*_: Any) -> None:
@@ -157,25 +185,69 @@ def specs() -> list[str]:
     return names + [f"{n}?{'&'.join(f'{k}={v}' for k, v in p.items())}" for n, p in VARIANTS]
 
 
-def measure_queries(store_dir: Path, repeat: int) -> dict[str, dict[str, Any]]:
+def child_queries(store_dir: str, directory: str, spec: str, repeat: int) -> None:
+    """Run one query of the library in ``directory`` (warm-up, then ``repeat`` timed runs, once if
+    the warm-up is over SLOW seconds), each run the query and its SPARQL JSON; print one JSON line
+    per run: wall and CPU seconds, rows and the SHA-256 of the JSON (the warm-up's)."""
     from stepnc_graph.query import execute, resolve
     from stepnc_graph.store import GraphStore
 
-    out = {}
+    name, _, params = spec.partition("?")
+    given = dict(pair.split("=", 1) for pair in params.split("&") if pair)
     with GraphStore(store_dir) as store:
-        for spec in specs():
-            name, _, params = spec.partition("?")
-            query = resolve(name)
-            given = dict(pair.split("=", 1) for pair in params.split("&") if pair)
-            rows = len(json.loads(execute(store, query, given).serialize("json"))["results"]["bindings"])  # warm-up
-            walls, cpus = [], []
-            for _ in range(repeat):
-                wall, cpu = time.perf_counter(), time.process_time()
-                execute(store, query, given).serialize("json")
-                walls.append(time.perf_counter() - wall)
-                cpus.append(time.process_time() - cpu)
-            out[spec] = {"wall": statistics.median(walls), "cpu": statistics.median(cpus), "rows": rows}
-    return out
+        query = resolve(name, Path(directory))
+        print(json.dumps({"ready": True}), flush=True)  # the time limit counts from here
+        for run in range(repeat + 1):
+            wall, cpu = time.perf_counter(), time.process_time()
+            data = execute(store, query, given).serialize("json")
+            wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+            out: dict[str, Any] = {"wall": wall, "cpu": cpu}
+            if run == 0:
+                out |= {"rows": len(json.loads(data)["results"]["bindings"]), "sha256": hashlib.sha256(data).hexdigest()}
+            print(json.dumps(out), flush=True)
+            if run == 0 and wall > SLOW:
+                repeat = 1
+
+
+def _cpu_seconds(pid: int) -> float | None:
+    """CPU seconds a running process has used so far (Linux /proc), None where unknown."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def time_query(store_dir: Path, directory: Path, spec: str, repeat: int, timeout: float) -> dict[str, Any]:
+    """Median wall and CPU seconds of ``spec`` from ``directory`` (a child process); a run over
+    ``timeout`` seconds stops it: ``{"timeout": seconds}`` then."""
+    proc = subprocess.Popen([sys.executable, __file__, "--child", "queries", str(store_dir), str(directory), spec,
+                             str(repeat)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    runs: list[dict[str, Any]] = []
+    started = False
+    try:
+        while True:
+            ready, _, _ = select.select([proc.stdout], [], [], timeout if started else max(timeout, 600))
+            if not ready:  # the run in progress is over the limit
+                return {"timeout": timeout, "cpu_at_stop": _cpu_seconds(proc.pid), "runs": len(runs)}
+            line = proc.stdout.readline()
+            if not line:
+                break
+            row = json.loads(line)
+            if row.get("ready"):
+                started = True
+            else:
+                runs.append(row)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        _, err = proc.communicate()
+    if proc.returncode != 0 or len(runs) < 2:
+        raise RuntimeError(f"{spec} from {directory}: " + (err.strip().splitlines()[-1] if err.strip() else "failed"))
+    timed = runs[1:]
+    return {"wall": statistics.median(r["wall"] for r in timed), "cpu": statistics.median(r["cpu"] for r in timed),
+            "rows": runs[0]["rows"], "sha256": runs[0]["sha256"], "runs": len(timed)}
 
 
 def report_load(size: int, runs: dict[str, list[dict[str, Any]]]) -> None:
@@ -195,27 +267,63 @@ def report_load(size: int, runs: dict[str, list[dict[str, Any]]]) -> None:
           f"{statistics.median(r['vocabulary'] for r in runs['on']):.2f} s")
 
 
-def report_queries(size: int, ox_times: dict[str, dict[str, Any]]) -> list[str]:
-    """Print the Oxigraph timings now (rdflib's follow as they come); return the queries over time."""
-    target = 0.1 if size <= 100_000 else 1.0
-    print(f"\nqueries at {size:,} instances, on-disk Oxigraph (target <= {target * 1000:.0f} ms median)")
-    print(f"  {'query':58} {'rows':>6} {'wall ms':>8} {'CPU ms':>8}  verdict")
-    misses = []
-    for spec, t in ox_times.items():
-        ok = t["wall"] <= target
-        if not ok:
-            misses.append(spec)
-        print(f"  {spec:58} {t['rows']:>6} {t['wall'] * 1000:>8,.1f} {t['cpu'] * 1000:>8,.1f}  "
-              f"{'ok' if ok else 'MISS time'}", flush=True)
-    print(f"  {len(ox_times) - len(misses)} of {len(ox_times)} within {target * 1000:.0f} ms" +
-          (f"; over: {', '.join(misses)}" if misses else ""), flush=True)
-    return misses
+def _ms(t: dict[str, Any], key: str) -> str:
+    """Milliseconds; for a run stopped at the limit, the limit (wall) and the process's CPU time
+    then, start-up included, in parentheses."""
+    if "timeout" not in t:
+        return f"{t[key] * 1000:,.1f}"
+    if key == "wall":
+        return f">{t['timeout'] * 1000:,.0f}"
+    return f"({t['cpu_at_stop'] * 1000:,.0f})" if t.get("cpu_at_stop") is not None else "-"
 
 
-def stream_rdflib(store_dir: Path, graph: str, timeout: float, ox_times: dict[str, dict[str, Any]]) -> None:
+def measure_queries(title: str, store_dir: Path, repeat: int, timeout: float, baseline: Path | None,
+                    target: float | None) -> dict[str, dict[str, Any]]:
+    """Time every library query on the store (alternating with the baseline library's, if any),
+    printing each as it is done; return the current library's figures. ``target``: the median
+    wall seconds a query must not exceed (None: report only)."""
+    from stepnc_graph.resources import queries_dir
+
+    print(f"\nqueries on {title}, on-disk Oxigraph (" +
+          (f"target <= {target * 1000:.0f} ms median" if target else "no target: figures only") + ")")
+    head = f"  {'query':58} {'rows':>6} {'wall ms':>10} {'CPU ms':>10}"
+    if baseline is not None:
+        head += f" | {'baseline wall':>13} {'CPU ms':>10} {'rows':>6}  same JSON"
+    print(head + ("  verdict" if target else ""), flush=True)
+    times, misses, differ = {}, [], []
+    for spec in specs():
+        before = None
+        if baseline is not None and (baseline / f"{spec.partition('?')[0]}.rq").is_file():
+            before = time_query(store_dir, baseline, spec, repeat, timeout)
+        t = times[spec] = time_query(store_dir, queries_dir(), spec, repeat, timeout)
+        line = f"  {spec:58} {t.get('rows', '-'):>6} {_ms(t, 'wall'):>10} {_ms(t, 'cpu'):>10}"
+        if baseline is not None:
+            if before is None:
+                line += f" | {'(not in baseline)':>31}"
+            else:
+                same = "yes" if "sha256" in t and t["sha256"] == before.get("sha256") else (
+                    "?" if "timeout" in t or "timeout" in before else "NO")
+                if same == "NO":
+                    differ.append(spec)
+                line += f" | {_ms(before, 'wall'):>13} {_ms(before, 'cpu'):>10} {before.get('rows', '-'):>6}  {same}"
+        if target:
+            ok = "wall" in t and t["wall"] <= target
+            if not ok:
+                misses.append(spec)
+            line += "  " + ("ok" if ok else "MISS time")
+        print(line, flush=True)
+    if target:
+        print(f"  {len(times) - len(misses)} of {len(times)} within {target * 1000:.0f} ms" +
+              (f"; over: {', '.join(misses)}" if misses else ""), flush=True)
+    if baseline is not None:
+        print("  results differing from the baseline's: " + (", ".join(differ) if differ else "none"), flush=True)
+    return times
+
+
+def stream_rdflib(store_dir: Path, graphs: list[str], timeout: float, ox_times: dict[str, dict[str, Any]]) -> None:
     """Run the library in rdflib (a child process) and print each query's ratio as it finishes."""
-    proc = subprocess.Popen([sys.executable, __file__, "--child", "rdflib", str(store_dir), graph, str(timeout),
-                             *ox_times], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, __file__, "--child", "rdflib", str(store_dir), ",".join(graphs),
+                             str(timeout), *ox_times], stdout=subprocess.PIPE, text=True)
     assert proc.stdout is not None
     slow = []
     for line in proc.stdout:
@@ -228,6 +336,11 @@ def stream_rdflib(store_dir: Path, graph: str, timeout: float, ox_times: dict[st
             print(f"  {'query':58} {'rdflib ms':>10} {'Oxigraph ms':>11} {'ratio':>8}  verdict")
             continue
         t = ox_times[row["name"]]
+        if "wall" not in t:  # Oxigraph was stopped at its time limit: no ratio
+            slow.append(row["name"])
+            rdf = f"{row['wall'] * 1000:>10,.0f}" if "wall" in row else f"{'-':>10}"
+            print(f"  {row['name']:58} {rdf} {_ms(t, 'wall'):>11} {'-':>8}  (Oxigraph over its time limit)")
+            continue
         if "wall" in row:
             ratio, rdf_text = row["wall"] / t["wall"], f"{row['wall'] * 1000:>10,.0f}"
             note = "" if row["rows"] == t["rows"] else f" (rdflib rows {row['rows']} != {t['rows']})"
@@ -247,9 +360,18 @@ def stream_rdflib(store_dir: Path, graph: str, timeout: float, ox_times: dict[st
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000])
+    ap.add_argument("--programs", nargs="+", choices=["generated", "replicated"], default=["generated", "replicated"],
+                    help="bench/generate.py's generated program, a replicated real one, or both (default)")
+    ap.add_argument("--real", type=Path, default=EXAMPLE,
+                    help="the real program to replicate (default: the shipped two-setup shaft)")
+    ap.add_argument("--copies", type=int, default=1,
+                    help="copies of the program in the store, each under its own graph IRI (default 1)")
     ap.add_argument("--repeat", type=int, default=5, help="timed runs per query (after one warm-up)")
+    ap.add_argument("--query-timeout", type=float, default=300, help="seconds a query run may take (Oxigraph)")
+    ap.add_argument("--baseline", type=Path, help="a directory of .rq files to time beside the library")
     ap.add_argument("--load-repeat", type=int, default=3, help="loads with and without the layer (1M: 1; 0: skip)")
-    ap.add_argument("--rdflib-max", type=int, default=100_000, help="largest size also run in rdflib")
+    ap.add_argument("--rdflib-max", type=int, default=100_000,
+                    help="largest store (instances, all copies) also run in rdflib; 0: never")
     ap.add_argument("--rdflib-timeout", type=float, default=120, help="seconds per rdflib query")
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
@@ -258,29 +380,51 @@ def main() -> None:
         kind, rest = args.child[0], args.child[1:]
         if kind == "load":
             child_load(*rest)
+        elif kind == "queries":
+            child_queries(rest[0], rest[1], rest[2], int(rest[3]))
         else:
             child_rdflib(rest[0], rest[1], float(rest[2]), rest[3:])
         return
+    if args.copies < 1:
+        ap.error("--copies must be at least 1")
+    if args.baseline is not None and not any(args.baseline.glob("*.rq")):
+        ap.error(f"--baseline {args.baseline}: no .rq files there")
+    from stepnc_graph.naming import default_graph_iri
+
     args.data.mkdir(parents=True, exist_ok=True)
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}")
     for size in args.sizes:
-        path = args.data / f"turning_{size}.stp"
-        if not path.exists():
-            write(size, path)
-        work = Path(tempfile.mkdtemp(prefix="stepnc-query-bench-", dir=args.data))
-        try:
-            if args.load_repeat > 0:  # 0: queries only
-                report_load(size, measure_loads(path, work, 1 if size >= 1_000_000 else args.load_repeat))
-            store_dir = work / "store"
-            run_child("load", str(path), str(store_dir), "on")
-            ox_times = measure_queries(store_dir, args.repeat)
-            report_queries(size, ox_times)
-            if size <= args.rdflib_max:
-                from stepnc_graph.naming import default_graph_iri
-
-                stream_rdflib(store_dir, default_graph_iri(str(path)), args.rdflib_timeout, ox_times)
-        finally:
-            shutil.rmtree(work, ignore_errors=True)
+        for program in args.programs:
+            if program == "generated":
+                path = args.data / f"turning_{size}.stp"
+                if not path.exists():
+                    write(size, path)
+            else:
+                path = args.data / f"real_{size}.stp" if args.real == EXAMPLE else \
+                    args.data / f"real_{args.real.stem}_{size}.stp"
+                if not path.exists():
+                    replicate(args.real, size, path)
+            work = Path(tempfile.mkdtemp(prefix="stepnc-query-bench-", dir=args.data))
+            try:
+                print(f"\n== {program} program, {size:,} instances ({path.name})", flush=True)
+                if args.load_repeat > 0:  # 0: queries only
+                    report_load(size, measure_loads(path, work, 1 if size >= 1_000_000 else args.load_repeat))
+                store_dir = work / "store"
+                own = default_graph_iri(str(path))
+                graphs = [own] + [f"{own}-copy{k}" for k in range(1, args.copies)]
+                instances = 0
+                for k, graph in enumerate(graphs):
+                    [row] = run_child("load", str(path), str(store_dir), "on", *([graph] if k else []))
+                    instances += row["instances"]
+                title = (f"the {program} program of {size:,} instances" if args.copies == 1 else
+                         f"{args.copies} copies of the {program} program of {size:,} instances "
+                         f"({instances:,} in all, one graph each)")
+                target = (0.1 if size <= 100_000 else 1.0) if args.copies == 1 else None
+                ox_times = measure_queries(title, store_dir, args.repeat, args.query_timeout, args.baseline, target)
+                if instances <= args.rdflib_max:
+                    stream_rdflib(store_dir, graphs, args.rdflib_timeout, ox_times)
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":
