@@ -159,12 +159,16 @@ def test_a_failed_compact_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch
         copies(s, 2)
         before = quads(s)
 
+        seen: list[int] = []
+
         def failing(done: int, total: int) -> None:
+            seen.append(done)
             if done > 300:
                 raise RuntimeError("disk full (injected)")
 
         with pytest.raises(RuntimeError, match="injected"):
             sg.compact(s, failing)
+        assert seen[:3] == [100, 200, 300]  # it failed between two bulk calls of one graph
         assert quads(s) == before
         assert sg.compact(s).quads == len(before) and quads(s) == before  # and it can be compacted after
     with sg.open_store(tmp_path / "s", readonly=True) as r:

@@ -117,8 +117,13 @@ DELETE_BATCH = 100_000
 #: others peaked at 1,677 MB (37.8 s); flushed every 500k, 627 MB (34.3 s); after every
 #: 100k-quad batch, 467 MB but 57.9 s (measured in one run)
 FLUSH_DELETES = 500_000
-#: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call)
-REBUILD_BATCH = 1_000_000
+#: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call). Measured,
+#: compacting a store of four real 100k-instance programs (5.46M quads), alternating: 1M a call,
+#: 77-82 s wall / 87-93 s CPU, 864-918 MB peak; 250k, 74-76 s / 104-106 s, 392-414 MB. Two threads
+#: copying graphs side by side gain nothing (the copy holds the GIL: 70 s, 100 s CPU), and one
+#: N-Quads dump bulk-loaded in one call (the only text route: Oxigraph renames blank nodes per
+#: parse, so the text cannot be split) took 52-70 s at 1.25-1.87 GB
+REBUILD_BATCH = 250_000
 #: a replacement beside other programs writes only what changed (see
 #: GraphStore._replace_by_difference). The new version is staged in a store in memory when the
 #: old one has at most this many quads (a 100k-instance program has 1.3-1.4M with its derived
@@ -1294,9 +1299,11 @@ def _give_back_freed_memory() -> None:
         pass
 
 
-def _extend_in_calls(db: ox.Store, quads: Iterator[ox.Quad], batch: int = REBUILD_BATCH) -> Iterator[int]:
-    """Bulk-add ``quads`` in calls of at most ``batch`` (the bulk loader's memory grows with a
-    call), the quads pulled one at a time; yields how many each call added."""
+def _extend_in_calls(db: ox.Store, quads: Iterator[ox.Quad], batch: int | None = None) -> Iterator[int]:
+    """Bulk-add ``quads`` in calls of at most ``batch`` (default :data:`REBUILD_BATCH`, read at
+    each call; the bulk loader's memory grows with a call), the quads pulled one at a time;
+    yields how many each call added."""
+    batch = batch or REBUILD_BATCH
     while True:
         added = 0
 
