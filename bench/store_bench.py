@@ -7,8 +7,12 @@ For each program (a generated one and a replicated real one, see bench/generate.
 size, in the same run, every operation in its own fresh process on an on-disk store that
 an earlier process prepared: wall and CPU seconds, the process's peak RSS, how the store
 removed the old graph ("rebuild": the store held little else; "delete": batched deletes
-beside other programs), and the store's size on disk afterwards; then ``compact`` on what the
-unload left (its time, and the disk space it gives back). The edited file has a comment line
+beside other programs), and the store's size on disk afterwards. An unload beside other
+programs compacts the database only once the quads deleted since its last compaction reach
+half the store (stepnc_graph.store.COMPACT_AT): the "unload" column is what the store chose
+("+c": it compacted), then the program is loaded again and unloaded with ``compact=True``
+(``unload --compact``: the deletes and a compaction of the whole store), and ``compact``
+runs on what that left (its time, and the disk space it gives back). The edited file has a comment line
 after ``DATA;``: every instance's line changes, nothing else. Ratios are against the
 fresh load of the same file measured in the same run. "beside 3 others" puts the program
 in a store that also holds three other copies of it (other graph IRIs).
@@ -52,14 +56,16 @@ def child(op: str, store_dir: str, path: str) -> None:
         elif op == "replace-edited":
             [r] = sg.load(store, [edited(Path(path))], base_iri=GRAPH, replace=True)
             assert not r.diagnostics, r.diagnostics[:3]
-        elif op == "unload":
-            assert sg.unload(store, GRAPH)
+        elif op in ("unload", "unload-compact"):
+            assert sg.unload(store, GRAPH, compact=op == "unload-compact")
         elif op == "compact":
             sg.compact(store)
         elif op.startswith("others"):
             for k in range(int(op[len("others"):])):
                 sg.load(store, [path], base_iri=f"{GRAPH}-other{k}")
         removal = store.last_removal
+        if removal is not None and store.compacted:
+            removal += "+c"
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     print(json.dumps({"wall": wall, "cpu": cpu, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                       "removal": removal}))
@@ -90,7 +96,7 @@ def disk_mb(path: Path) -> float:
 def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict[str, float | str | None]]:
     """Median figures of load, replace and unload with ``others`` other programs in the store."""
     results: dict[str, list[dict[str, float | str | None]]] = {"load": [], "replace": [], "replace-edited": [],
-                                                               "unload": [], "compact": []}
+                                                               "unload": [], "unload-compact": [], "compact": []}
     for _ in range(repeat):
         store = work / "store"
         shutil.rmtree(store, ignore_errors=True)
@@ -100,13 +106,15 @@ def scenario(path: Path, others: int, repeat: int, work: Path) -> dict[str, dict
         results["replace"].append(run("replace", store, path))
         results["replace-edited"].append(run("replace-edited", store, path))
         results["unload"].append({**run("unload", store, path), "disk_mb": disk_mb(store)})
+        run("load", store, path)  # again, for the unload that compacts
+        results["unload-compact"].append({**run("unload-compact", store, path), "disk_mb": disk_mb(store)})
         results["compact"].append({**run("compact", store, path), "disk_mb": disk_mb(store)})
     out = {}
     for op, runs in results.items():
         out[op] = {k: statistics.median(float(r[k]) for r in runs)  # type: ignore[arg-type]
                    for k in ("wall", "cpu", "rss_mb")}
         out[op]["removal"] = runs[0]["removal"]
-        if op in ("unload", "compact"):
+        if op in ("unload", "unload-compact", "compact"):
             out[op]["disk_mb"] = statistics.median(float(r["disk_mb"]) for r in runs)  # type: ignore[arg-type]
     return out
 
@@ -129,7 +137,8 @@ def main() -> None:
     args.data.mkdir(parents=True, exist_ok=True)
     print(f"machine: {os.cpu_count()} cores; Python {sys.version.split()[0]}; seconds are wall / CPU")
     header = (f"{'program':>22} {'store holds':>15} | {'load':>22} | {'replace':>35} | "
-              f"{'replace by the edited file':>35} | {'unload':>42} | {'compact (after the unload)':>31}")
+              f"{'replace by the edited file':>35} | {'unload':>42} | {'unload --compact':>42} | "
+              f"{'compact (after the unloads)':>31}")
     print(header)
     print("-" * len(header))
     for size in args.sizes:
@@ -146,18 +155,22 @@ def main() -> None:
             for others in args.others:
                 with tempfile.TemporaryDirectory(dir=args.data) as work:
                     r = scenario(path, others, repeat, Path(work))
-                load, rep, edit, unl, comp = r["load"], r["replace"], r["replace-edited"], r["unload"], r["compact"]
+                load, rep, edit, comp = r["load"], r["replace"], r["replace-edited"], r["compact"]
 
                 def cell(x: dict[str, float | str | None]) -> str:
                     return f"{x['wall']:5.1f}/{x['cpu']:5.1f} s {x['rss_mb']:5.0f} MB"
 
+                def unloaded(x: dict[str, float | str | None], load: dict[str, float | str | None] = load) -> str:
+                    return (f"{cell(x)} {float(x['wall']) / float(load['wall']):4.2f}x {x['removal']:>9} "
+                            f"{x['disk_mb']:5.0f} MB")
+
                 print(f"{name:>22} {'it alone' if not others else f'beside {others} others':>15} | {cell(load)} | "
                       f"{cell(rep)} {float(rep['wall']) / float(load['wall']):4.2f}x {rep['removal']:>10} | "
                       f"{cell(edit)} {float(edit['wall']) / float(load['wall']):4.2f}x {edit['removal']:>10} | "
-                      f"{cell(unl)} {float(unl['wall']) / float(load['wall']):4.2f}x {unl['removal']:>7} "
-                      f"{unl['disk_mb']:5.0f} MB | {cell(comp)} {comp['disk_mb']:5.0f} MB", flush=True)
+                      f"{unloaded(r['unload'])} | {unloaded(r['unload-compact'])} | {cell(comp)} "
+                      f"{comp['disk_mb']:5.0f} MB", flush=True)
     print("\nmedians; MB: the operation's peak RSS; the ratios are wall time against the fresh load in the same "
-          "row;\nafter the unload and after compact: the store's size on disk.")
+          "row;\nafter the unloads and after compact: the store's size on disk; +c: the unload compacted.")
 
 
 if __name__ == "__main__":

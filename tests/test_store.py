@@ -111,9 +111,9 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
 
 def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Deleted quads hold their space until RocksDB compacts them, and the deletes' write-ahead
-    log until the database is opened again: an unload compacts and reopens, so the whole store
-    directory shrinks, not only the published generation readers open (the deletes go in
-    several rounds with flushes between them, as a large program's do)."""
+    log until the database is opened again: an unload that compacts (here asked to) also
+    reopens, so the whole store directory shrinks, not only the published generation readers
+    open (the deletes go in several rounds with flushes between them, as a large program's do)."""
     monkeypatch.setattr(store_module, "FLUSH_DELETES", 20_000)
     big = generated(tmp_path, 5_000)
     with sg.open_store(tmp_path / "s") as s:
@@ -121,12 +121,96 @@ def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path, mo
         for g in graphs:
             sg.load(s, [big], base_iri=g)
         loaded = disk_bytes(tmp_path / "s")
-        assert sg.unload(s, graphs[0]) and s.last_removal == "delete"
+        assert sg.unload(s, graphs[0], compact=True) and s.last_removal == "delete" and s.compacted
+        assert s.deleted_quads == 0
         assert disk_bytes(tmp_path / "s") < loaded * 0.85
         assert s.count(graphs[1]) == s.count(graphs[2]) > 0  # the reopened database is the one in use
         # the published generation is a checkpoint: it copied the log of the last round (8 MB here)
         logs = (tmp_path / "s" / (tmp_path / "s" / "CURRENT").read_text().strip()).glob("*.log")
         assert sum(f.stat().st_size for f in logs) < 64 << 10
+
+
+def program_quads(s: GraphStore, graph: str) -> int:
+    """The quads an unload of ``graph`` deletes: the program and its derived layer."""
+    return s.count(graph) + s.count(graph + "/derived")
+
+
+def test_unloads_compact_once_the_deleted_quads_reach_compact_at(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """A compaction rewrites the whole database, so unloads beside other programs compact only
+    once the quads deleted since the last one reach COMPACT_AT of what the store holds (the
+    bound is put between the first and the second unload here). The count outlives the
+    process, readers see it, `compact` and a compacting unload reset it."""
+    with sg.open_store(tmp_path / "s") as s:
+        graphs = copies(s, 4)
+        n, held = program_quads(s, graphs[0]), s.count()
+        first, second = n / (held - n), 2 * n / (held - 2 * n)  # deleted / left after each unload
+        monkeypatch.setattr(store_module, "COMPACT_AT", (first + second) / 2)
+        assert sg.unload(s, graphs[0]) and s.last_removal == "delete" and not s.compacted
+        assert s.deleted_quads == n
+    with sg.open_store(tmp_path / "s", readonly=True) as r:
+        assert r.deleted_quads == n
+    with sg.open_store(tmp_path / "s") as s:
+        assert s.deleted_quads == n
+        assert sg.unload(s, graphs[1]) and s.last_removal == "delete" and s.compacted
+        assert s.deleted_quads == 0
+        assert sg.unload(s, graphs[2], compact=True) and s.compacted and s.deleted_quads == 0
+        sg.load(s, [EXAMPLE], base_iri=graphs[0])
+        assert sg.unload(s, graphs[0]) and not s.compacted and s.deleted_quads == n
+        sg.compact(s)
+        assert s.deleted_quads == 0
+
+
+def test_a_failed_unload_keeps_the_count_of_deleted_quads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(store_module, "COMPACT_AT", 10.0)  # never reached here
+    with sg.open_store(tmp_path / "s") as s:
+        graphs = copies(s, 4)
+        n = program_quads(s, graphs[0])
+        assert sg.unload(s, graphs[0]) and s.deleted_quads == n
+
+        def failing(self: GraphStore, item: tuple[ox.NamedNode, str, int]) -> None:
+            raise RuntimeError("disk full (injected)")
+
+        monkeypatch.setattr(GraphStore, "_delete_predicate", failing)
+        with pytest.raises(RuntimeError, match="injected"):
+            sg.unload(s, graphs[1])
+        assert s.deleted_quads == n and s.has_graph(graphs[1])
+
+
+def test_a_replacement_counts_the_quads_it_deleted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(store_module, "COMPACT_AT", 10.0)
+    with sg.open_store(tmp_path / "s") as s:
+        copies(s, 3)
+        sg.load(s, [EXAMPLE], base_iri=G)
+        sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
+        assert s.last_removal == "difference" and not s.compacted
+        assert s.deleted_quads == s.last_difference["deleted"] > 50  # every shifted p21:line at least
+        monkeypatch.setattr(store_module, "COMPACT_AT", 0.0)  # now any deletion reaches it
+        sg.load(s, [EXAMPLE], base_iri=G, replace=True)
+        assert s.compacted and s.deleted_quads == 0
+
+
+def test_unload_compact_and_info_on_the_command_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    monkeypatch.setattr(store_module, "COMPACT_AT", 10.0)
+    store = str(tmp_path / "s")
+    with sg.open_store(store) as s:
+        graphs = copies(s, 4)
+        n = program_quads(s, graphs[0])
+    runner = CliRunner()
+    assert runner.invoke(main, ["unload", "--store", store, graphs[0]]).exit_code == 0
+    doc = json.loads(runner.invoke(main, ["info", "--store", store, "--format", "json"]).output)
+    assert doc["deleted_quads"] == n
+    text = runner.invoke(main, ["info", "--store", store]).output
+    assert f"{n:,} deleted quads hold disk space until the next compaction" in text
+    res = runner.invoke(main, ["unload", "--store", store, "--compact", graphs[1], "urn:not-there"])
+    assert res.exit_code == 2 and "removed: " + graphs[1] in res.output
+    doc = json.loads(runner.invoke(main, ["info", "--store", store, "--format", "json"]).output)
+    assert doc["deleted_quads"] == 0 and [g["graph"] for g in doc["graphs"]] == graphs[2:]
+    assert "deleted quads" not in runner.invoke(main, ["info", "--store", store]).output
 
 
 def test_compact_gives_back_what_an_unload_beside_others_leaves(tmp_path: Path) -> None:

@@ -82,12 +82,14 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
             for s in sources]
 
 
-def unload(store: Store, graph: str) -> bool:
+def unload(store: Store, graph: str, compact: bool = False) -> bool:
     """Remove a file's graph with its derived layer and its link graphs (:mod:`stepnc_graph.link`),
-    atomically; False if there was none."""
+    atomically; False if there was none. Beside other programs the store compacts once enough was
+    deleted (:data:`~stepnc_graph.store.COMPACT_AT`); ``compact`` gives the space back now."""
     from stepnc_graph.link import program_link_graphs
 
-    return store.remove_graph(graph, companions=(derived_graph_iri(graph), *program_link_graphs(store, graph)))
+    companions = (derived_graph_iri(graph), *program_link_graphs(store, graph))
+    return store.remove_graph(graph, companions=companions, compact=compact)
 
 
 @dataclass(frozen=True)

@@ -239,7 +239,9 @@ class RemoteStore:
     def add_turtle(self, graph: str, text: str) -> None:
         self._post_graph(graph, text.encode("utf-8"), _TURTLE)
 
-    def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool:
+    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
+        """Drop ``graph`` and its ``companions``; the endpoint manages its own storage, so
+        ``compact`` asks nothing of it."""
         if not self.has_graph(graph):
             return False
         self.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in (graph, *companions)))

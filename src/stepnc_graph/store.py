@@ -9,6 +9,7 @@ Layout of a store directory (format 2)::
     DIR/g000007.lock              readers hold a shared lock on it while they read that generation
     DIR/work/                     the writer's read-write database
     DIR/work.dirty                present while work/ may differ from the published generation
+    DIR/deleted-quads             quads deleted since work/ was last compacted (see COMPACT_AT)
     DIR/rebuild/, DIR/difference/ a write's scratch (a database being rebuilt, a replacement's texts)
 
 **One writer, many readers.** RocksDB lets one process open a database for
@@ -37,16 +38,18 @@ graph takes about 7-8 µs and copying the rest of the store into a fresh databas
 ``clear_graph`` cost more still): the time goes into RocksDB's memtable skip list and the
 indexed write batch of a transaction (perf), which a bulk load skips by writing table files.
 So removing a graph either deletes its quads in bounded batches (flat memory, see
-:meth:`GraphStore._delete_in_batches`) and then compacts the database (an unload gives
-the space back; a replacement refills it), or -- when the graph is a large part of the
+:meth:`GraphStore._delete_in_batches`), or -- when the graph is a large part of the
 store -- rebuilds the database from the other graphs, which also gives its disk space
-back at once; whichever costs less by those figures. Beside other programs an unload
-costs 1.1-1.6 loads of the same program (the deletes and a compaction of the whole
-database, about half each). A replacement there writes only what changed
+back at once; whichever costs less by those figures. Deleted quads keep their disk space
+until the database is compacted, and a compaction rewrites all of it, so its cost grows with
+the store, not with the program: an unload compacts once the quads deleted since the last
+compaction reach half the store (:data:`COMPACT_AT`; ``unload --compact`` at once). Beside
+three programs of its size an unload then costs about one load (its deletes), and 1.5 loads
+when it compacts. A replacement there writes only what changed
 (:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
 one costs 0.8-1.25 loads, where deleting the old version and loading the new one cost
 2.1-2.5 (100k instances beside three such programs, measured); a program of 1M instances
-is staged on disk and costs about 1.6 loads (see docs/loading.md). The deletes' write-ahead log is dropped at once
+is staged on disk (see docs/loading.md). The deletes' write-ahead log is dropped at once
 (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed quads used
 stay until :meth:`GraphStore.compact` rebuilds the database.
 
@@ -117,6 +120,19 @@ DELETE_BATCH = 100_000
 #: others peaked at 1,677 MB (37.8 s); flushed every 500k, 627 MB (34.3 s); after every
 #: 100k-quad batch, 467 MB but 57.9 s (measured in one run)
 FLUSH_DELETES = 500_000
+#: an unload or a replacement that deleted compacts the database once the quads deleted since its
+#: last compaction reach this share of the quads it holds (:meth:`GraphStore._settle`). A
+#: compaction rewrites the whole database (about 1.4 µs a quad in it), so compacting at every
+#: unload made an unload cost its deletes (about one load of the program) plus a share that grows
+#: with the store: 1.51x a load beside three programs of its size (21.1 s against 14.0; the
+#: deletes 13.2 s). Compacting when the deletes reach half the store costs per deleted quad at
+#: most 1.4 * (1 + 0.5) / 0.5 = 4.2 µs over time, against 10 µs a quad for the deletes and for a
+#: load (all measured in one run), so unloads cost about 1.4 loads on average at any store size,
+#: and the tombstones and dead data waiting take at most half the store again on disk
+#: (1,770 MB where the compacted store took 1,257, with a third of it deleted)
+COMPACT_AT = 0.5
+#: the file in a store directory that counts the quads deleted since ``work/`` was last compacted
+DELETED_QUADS = "deleted-quads"
 #: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call). Measured,
 #: compacting a store of four real 100k-instance programs (5.46M quads), alternating: 1M a call,
 #: 77-82 s wall / 87-93 s CPU, 864-918 MB peak; 250k, 74-76 s / 104-106 s, 392-414 MB. Two threads
@@ -180,7 +196,7 @@ class Store(Protocol):
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None: ...
 
-    def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool: ...
+    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool: ...
 
     def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None: ...
 
@@ -319,6 +335,9 @@ class GraphStore:
         #: these, with a blank node), blank nodes of the new version that kept the old version's
         #: node (see _replace_by_difference)
         self.last_difference: dict[str, int] = {}
+        #: whether the last unload or replacement compacted the database (see _settle)
+        self.compacted = False
+        self._deleted_after: int | None = None  # deleted_quads once this write commits (see _settle)
         self._deletes_logged = False  # work/'s write-ahead log holds batched deletes (see _commit)
         self._parked: ox.Store | None = None  # the database on disk while a replacement is staged
         if self.path is None:
@@ -530,7 +549,44 @@ class GraphStore:
         if self._deletes_logged:  # before the checkpoint, which would copy the log
             self._drop_write_ahead_log()
         self._publish()
+        self._count_deleted()
         self._collect()
+
+    def _count_deleted(self) -> None:
+        """Write the count of deleted quads this write leaves (see :meth:`_settle`), after the
+        generation it belongs to is published. A writer killed in between leaves the count of the
+        write before: the only effect is a later compaction."""
+        after, self._deleted_after = self._deleted_after, None
+        if after is None:
+            return
+        tmp = self._file(DELETED_QUADS + ".tmp")
+        tmp.write_text(f"{after}\n")
+        os.replace(tmp, self._file(DELETED_QUADS))
+
+    @property
+    def deleted_quads(self) -> int:
+        """Quads deleted from the database since it was last compacted (0 in memory): the space
+        their tombstones and dead data take comes back at the next compaction, which an unload
+        or a replacement runs once they reach :data:`COMPACT_AT` of the store."""
+        if self.path is None:
+            return 0
+        try:
+            return int(self._file(DELETED_QUADS).read_text())
+        except (OSError, ValueError):
+            return 0
+
+    def _settle(self, deleted: int, held: int, compact: bool = False) -> None:
+        """Count ``deleted`` quads against the database, which holds about ``held`` quads, and
+        compact it (``optimize``: the space of deleted quads comes back) when the quads deleted
+        since its last compaction reach :data:`COMPACT_AT` of ``held``, or when ``compact``
+        asks for it. Not at every unload: a compaction rewrites the whole database, so its cost
+        grows with the store, not with what was deleted (see :data:`COMPACT_AT`)."""
+        pending = self.deleted_quads + deleted
+        self.compacted = compact or pending >= COMPACT_AT * max(held, 1)
+        if self.compacted:
+            self._db.optimize()
+            pending = 0
+        self._deleted_after = pending
 
     def _drop_write_ahead_log(self) -> None:
         """Reopen ``work/`` so that RocksDB deletes the write-ahead log of batched deletes.
@@ -561,6 +617,7 @@ class GraphStore:
         if self.path is None:
             return
         self._deletes_logged = False  # work/ is rebuilt from the published generation
+        self._deleted_after = None
         old, self._store = self._store, None
         # Called while an exception propagates. If anything still references the database (a
         # frame of that exception's traceback, typically after Ctrl-C, or a caller's
@@ -656,11 +713,13 @@ class GraphStore:
             self._replace_in_memory(graph, chunks, before_commit, companions)
             return
         self._begin()
+        self.compacted = False
         try:
-            how, present, removed = self._removal([graph, *companions])
+            how, present, removed, held = self._removal([graph, *companions])
             if how == "delete":
-                self._replace_by_difference(graph, chunks, before_commit, companions,
-                                            in_memory=removed <= STAGE_IN_MEMORY_QUADS)
+                deleted = self._replace_by_difference(graph, chunks, before_commit, companions,
+                                                      in_memory=removed <= STAGE_IN_MEMORY_QUADS)
+                self._settle(deleted, held)
             else:
                 self._remove(how, present)
                 self._bulk_load(graph, chunks)
@@ -671,8 +730,12 @@ class GraphStore:
             self._rollback()
             raise
 
-    def remove_graph(self, graph: str, companions: Sequence[str] = ()) -> bool:
-        """Remove ``graph`` and its ``companions``; False if ``graph`` was not there."""
+    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
+        """Remove ``graph`` and its ``companions``; False if ``graph`` was not there.
+
+        Deleted quads keep their disk space until the database is compacted: beside other
+        programs that happens once enough was deleted (:meth:`_settle`), or now with
+        ``compact``. Removed by a rebuild, the space comes back at once."""
         if not self._db.contains_named_graph(ox.NamedNode(graph)):
             return False
         if self.path is None:
@@ -680,13 +743,12 @@ class GraphStore:
                 self._db.remove_graph(ox.NamedNode(name))
             return True
         self._begin()
+        self.compacted = False
         try:
-            self._drop([graph, *companions])
-            if self.last_removal == "delete":
-                # Deleted quads keep their disk space until RocksDB compacts them: give it back
-                # now (measured, 100k instances beside 3 others: 2,306 MB after the deletes,
-                # 1,175 MB after this, which costs 7 s against the deletes' 36 s)
-                self._db.optimize()
+            how, present, removed, held = self._removal([graph, *companions])
+            self._remove(how, present)
+            if how == "delete":
+                self._settle(removed, held - removed, compact)
             self._commit()
         except BaseException:
             self._rollback()
@@ -696,20 +758,16 @@ class GraphStore:
     def _quads_in(self, graphs: Sequence[str]) -> int:
         return sum(self.count(g) for g in graphs if self.has_graph(g))
 
-    def _removal(self, graphs: Sequence[str]) -> tuple[str | None, list[str], int]:
+    def _removal(self, graphs: Sequence[str]) -> tuple[str | None, list[str], int, int]:
         """How removing ``graphs`` costs less (see the module docstring): "rebuild", "delete",
-        or None when none of them is there; with the ones present and their quads."""
+        or None when none of them is there; with the ones present, their quads and the
+        database's."""
         present = [g for g in graphs if self.has_graph(g)]
         if not present:
-            return None, [], 0
-        removed = self._quads_in(present)
-        how = "rebuild" if (len(self._db) - removed) * REBUILD_COST < removed * DELETE_COST else "delete"
-        return how, present, removed
-
-    def _drop(self, graphs: Sequence[str]) -> None:
-        """Remove ``graphs`` from ``work/`` by the cheaper way (see the module docstring)."""
-        how, present, _ = self._removal(graphs)
-        self._remove(how, present)
+            return None, [], 0, 0
+        removed, held = self._quads_in(present), len(self._db)
+        how = "rebuild" if (held - removed) * REBUILD_COST < removed * DELETE_COST else "delete"
+        return how, present, removed, held
 
     def _remove(self, how: str | None, present: list[str]) -> None:
         """Remove the graphs ``present`` the way :meth:`_removal` chose."""
@@ -723,8 +781,9 @@ class GraphStore:
 
     def _replace_by_difference(self, graph: str, chunks: Iterable[Chunk],
                                before_commit: Callable[[Callable[[str], str]], None] | None,
-                               companions: Sequence[str], in_memory: bool = True) -> None:
-        """Replace ``graph`` and its companions by writing only the quads that changed.
+                               companions: Sequence[str], in_memory: bool = True) -> int:
+        """Replace ``graph`` and its companions by writing only the quads that changed; returns
+        how many quads were deleted.
 
         Deleting costs Oxigraph more than loading does (see the module docstring), so a
         replacement that deletes the old version and loads the new one costs two to three loads
@@ -754,12 +813,16 @@ class GraphStore:
             self.last_removal = "difference"
             staged_counts = self._apply_difference(old, new, _BlankMatch(old[graph], new[graph]), scratch)
             self.last_difference["staged in memory"] = int(in_memory)
+            deleted = self.last_difference["deleted"]
             if any(staged_counts[n] != self.count(n) for n in new):
                 self.last_removal = "difference, then delete"
-                self._delete_in_batches([n for n in new if self.has_graph(n)])
+                present = [n for n in new if self.has_graph(n)]
+                deleted += self._quads_in(present)
+                self._delete_in_batches(present)
                 for name, path in new.items():
                     if path is not None:
                         self._insert(path, name)
+            return deleted
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
 
@@ -980,6 +1043,7 @@ class GraphStore:
         shutil.rmtree(self._file("work"))
         rebuild.rename(self._file("work"))
         self._store = ox.Store(str(self._file("work")))
+        self._deleted_after = 0  # a fresh database: nothing deleted in it
 
     def _copy_graph(self, fresh: ox.Store, graph: ox.NamedNode | ox.BlankNode | ox.DefaultGraph) -> Iterator[int]:
         """Copy ``graph`` into ``fresh``, yielding how many quads each bulk call copied. A
@@ -1125,8 +1189,8 @@ class GraphStore:
     def compact(self, progress: Callable[[int, int], None] | None = None) -> None:
         """Rebuild the database from its graphs, as one atomic write (``stepnc-graph compact``).
 
-        An unload beside other programs compacts RocksDB's tables, but Oxigraph never deletes
-        the strings (literals, IRIs) that only removed quads used (measured: a 100k-instance
+        An unload beside other programs compacts RocksDB's tables (once enough was deleted,
+        see :data:`COMPACT_AT`), but Oxigraph never deletes the strings (literals, IRIs) that only removed quads used (measured: a 100k-instance
         program unloaded beside three others left 1,200 MB on disk where a rebuilt store takes
         945 MB), so a store whose programs come and go keeps growing. A rebuild keeps only what
         the graphs hold. It copies every quad (about 16 µs of CPU each), so it is a maintenance

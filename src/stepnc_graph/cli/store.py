@@ -212,19 +212,27 @@ def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None
 @store_option
 @with_endpoint
 @wait_option
+@click.option("--compact", is_flag=True,
+              help="Compact the database now, whatever was deleted since its last compaction.")
 @reports_errors
-def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteOptions, wait: bool) -> None:
+def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteOptions, wait: bool,
+               compact: bool) -> None:
     """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`).
 
-    The space they took is given back. Exit 2 if a graph is not in the store
-    (the others are still removed).
+    Removing the only program gives its disk space back at once. Beside other
+    programs, deleted data keeps its space until the database is compacted,
+    and a compaction rewrites the whole store, so unload compacts once the
+    data deleted since the last compaction reaches half the store (`info`
+    shows how much waits); `--compact` compacts now. Exit 2 if a graph is not
+    in the store (the others are still removed).
     """
     from stepnc_graph.api import unload
 
     for g in graphs:
         _check_graph(g, "graph")
     with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
-        missing = [g for g in graphs if not unload(store, g)]
+        last = next((g for g in reversed(graphs) if store.has_graph(g)), None)  # one compaction, at the end
+        missing = [g for g in graphs if not unload(store, g, compact=compact and g == last)]
     for g in graphs:
         if g not in missing:
             out.print(f"removed: {escape(g)}")
@@ -292,10 +300,15 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
     with open_reader(store_path, remote) as store:
         rows = info(store)
         location = _location(store)
+        deleted = getattr(store, "deleted_quads", None)  # an endpoint manages its own storage
     if fmt == "json":
-        click.echo(json.dumps({"store": location, "graphs": [r.asdict() for r in rows]}, indent=2))
+        click.echo(json.dumps({"store": location, "graphs": [r.asdict() for r in rows], "deleted_quads": deleted},
+                              indent=2))
         return
     out.print(f"{len(rows)} graph(s) in {escape(location)}")
+    if deleted:
+        out.print(f"{deleted:,} deleted quads hold disk space until the next compaction "
+                  f"(`unload --compact`, `compact`, or an unload once they reach half the store)")
     for r in rows:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
         out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
