@@ -938,9 +938,16 @@ class GraphStore:
         """Delete the N-Triples lines of the file ``path`` (as Oxigraph dumped them) from graph
         ``node``, :data:`DELETE_LINES` at a time: ground ones by ``DELETE DATA``, the ones with a
         blank node (which SPARQL cannot name) parsed with their labels kept and removed one by
-        one."""
+        one. The memory tables are flushed after every :data:`FLUSH_DELETES` lines, as batched
+        deletes do between rounds (their tombstones stay in memory until then); here no other
+        thread deletes meanwhile."""
+        unflushed = 0
         with open(path, "rb") as fh:
             while batch := list(itertools.islice(fh, DELETE_LINES)):
+                if unflushed >= FLUSH_DELETES:
+                    self._flush()
+                    unflushed = 0
+                unflushed += len(batch)
                 ground: list[bytes] = []
                 blank: list[bytes] = []
                 for line in batch:
@@ -1190,9 +1197,9 @@ class GraphStore:
         """Rebuild the database from its graphs, as one atomic write (``stepnc-graph compact``).
 
         An unload beside other programs compacts RocksDB's tables (once enough was deleted,
-        see :data:`COMPACT_AT`), but Oxigraph never deletes the strings (literals, IRIs) that only removed quads used (measured: a 100k-instance
-        program unloaded beside three others left 1,200 MB on disk where a rebuilt store takes
-        945 MB), so a store whose programs come and go keeps growing. A rebuild keeps only what
+        see :data:`COMPACT_AT`), but Oxigraph never deletes the strings (literals, IRIs) that
+        only removed quads used (measured: a 100k-instance program unloaded beside three others
+        left 1,200 MB on disk where a rebuilt store takes 945 MB), so a store whose programs come and go keeps growing. A rebuild keeps only what
         the graphs hold. It copies every quad (about 16 µs of CPU each), so it is a maintenance
         step, not part of every unload. ``progress(done, total)`` counts the quads copied. An
         in-memory store has nothing to give back.
