@@ -252,9 +252,10 @@ def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
 
     `unload` compacts the database's indexes once enough was deleted (or with
     `--compact`), but Oxigraph keeps the strings (literals, IRIs) that only the
-    removed data used, so a store whose programs come and go grows. This rebuilds the database from the graphs it holds, as one
-    atomic write (readers keep reading the state before it). It copies every
-    quad: minutes for a store of many large programs. Never creates a store.
+    removed data used, so a store whose programs come and go grows. This
+    rebuilds the database from the graphs it holds, as one atomic write
+    (readers keep reading the state before it). It copies every quad: minutes
+    for a store of many large programs. Never creates a store.
     """
     from stepnc_graph.api import compact
 
