@@ -43,9 +43,9 @@ store -- rebuilds the database from the other graphs, which also gives its disk 
 back at once; whichever costs less by those figures. Deleted quads keep their disk space
 until the database is compacted, and a compaction rewrites all of it, so its cost grows with
 the store, not with the program: an unload compacts once the quads deleted since the last
-compaction reach half the store (:data:`COMPACT_AT`; ``unload --compact`` at once). Beside
-three programs of its size an unload then costs about one load (its deletes), and 1.5 loads
-when it compacts. A replacement there writes only what changed
+compaction reach a third of the store (:data:`COMPACT_AT`; ``unload --compact`` at once).
+Beside three programs of its size an unload then costs about one load (its deletes), and 1.5
+loads when it compacts. A replacement there writes only what changed
 (:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
 one costs 0.8-1.25 loads, where deleting the old version and loading the new one cost
 2.1-2.5 (100k instances beside three such programs, measured); a program of 1M instances
@@ -122,15 +122,18 @@ DELETE_BATCH = 100_000
 FLUSH_DELETES = 500_000
 #: an unload or a replacement that deleted compacts the database once the quads deleted since its
 #: last compaction reach this share of the quads it holds (:meth:`GraphStore._settle`). A
-#: compaction rewrites the whole database (about 1.4 µs a quad in it), so compacting at every
-#: unload made an unload cost its deletes (about one load of the program) plus a share that grows
-#: with the store: 1.51x a load beside three programs of its size (21.1 s against 14.0; the
-#: deletes 13.2 s). Compacting when the deletes reach half the store costs per deleted quad at
-#: most 1.4 * (1 + 0.5) / 0.5 = 4.2 µs over time, against 10 µs a quad for the deletes and for a
-#: load (all measured in one run), so unloads cost about 1.4 loads on average at any store size,
-#: and the tombstones and dead data waiting take at most half the store again on disk
-#: (1,770 MB where the compacted store took 1,257, with a third of it deleted)
-COMPACT_AT = 0.5
+#: compaction rewrites the whole database, so compacting at every unload made an unload cost its
+#: deletes (about one load of the program) plus a share that grows with the store: 1.51x a load
+#: beside three programs of its size (21.1 s against 14.0; the deletes 13.2 s), about 2.4 loads
+#: beside ten. Deleted quads wait on disk as their data plus tombstones in six indexes: measured
+#: 280 (100k instances) to 460 (1M) bytes each, where a live quad takes 170-310 bytes compacted;
+#: at 0.5 a store of three 1M-instance programs took 10,830 MB after one was unloaded, 2.36 times
+#: the 4,589 MB it took compacted (63.5 s). At 0.35 the store stays within about twice its
+#: compacted size by the worst of those figures (1 + 2.7 * 0.35), and a compaction costs per
+#: deleted quad at most 1.4-1.6 µs * (1 + 0.35) / 0.35 = 5.4-6 µs over time, against 10-12 µs a
+#: quad for the deletes and a load: unloads cost about 1.5 (100k) to 1.7 (1M) loads on average,
+#: whatever the store's size
+COMPACT_AT = 0.35
 #: the file in a store directory that counts the quads deleted since ``work/`` was last compacted
 DELETED_QUADS = "deleted-quads"
 #: quads per bulk_extend call of a rebuild (the bulk loader's memory grows with a call). Measured,

@@ -222,8 +222,8 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
     Removing the only program gives its disk space back at once. Beside other
     programs, deleted data keeps its space until the database is compacted,
     and a compaction rewrites the whole store, so unload compacts once the
-    data deleted since the last compaction reaches half the store (`info`
-    shows how much waits); `--compact` compacts now. Exit 2 if a graph is not
+    data deleted since the last compaction reaches a third of the store
+    (`info` shows how much waits); `--compact` compacts now. Exit 2 if a graph is not
     in the store (the others are still removed).
     """
     from stepnc_graph.api import unload
@@ -309,7 +309,7 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
     out.print(f"{len(rows)} graph(s) in {escape(location)}")
     if deleted:
         out.print(f"{deleted:,} deleted quads hold disk space until the next compaction "
-                  f"(`unload --compact`, `compact`, or an unload once they reach half the store)")
+                  f"(`unload --compact`, `compact`, or an unload once they reach a third of the store)")
     for r in rows:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
         out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
