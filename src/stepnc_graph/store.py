@@ -1202,10 +1202,11 @@ class GraphStore:
         An unload beside other programs compacts RocksDB's tables (once enough was deleted,
         see :data:`COMPACT_AT`), but Oxigraph never deletes the strings (literals, IRIs) that
         only removed quads used (measured: a 100k-instance program unloaded beside three others
-        left 1,200 MB on disk where a rebuilt store takes 945 MB), so a store whose programs come and go keeps growing. A rebuild keeps only what
-        the graphs hold. It copies every quad (about 16 µs of CPU each), so it is a maintenance
-        step, not part of every unload. ``progress(done, total)`` counts the quads copied. An
-        in-memory store has nothing to give back.
+        left 1,200 MB on disk where a rebuilt store takes 945 MB), so a store whose programs come
+        and go keeps growing. A rebuild keeps only what the graphs hold. It copies every quad
+        (about 16 µs of CPU each), so it is a maintenance step, not part of every unload.
+        ``progress(done, total)`` counts the quads copied. An in-memory store has nothing to give
+        back.
         """
         if self.path is None:
             return

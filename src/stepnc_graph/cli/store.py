@@ -223,8 +223,8 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
     programs, deleted data keeps its space until the database is compacted,
     and a compaction rewrites the whole store, so unload compacts once the
     data deleted since the last compaction reaches a third of the store
-    (`info` shows how much waits); `--compact` compacts now. Exit 2 if a graph is not
-    in the store (the others are still removed).
+    (`info` shows how much waits); `--compact` compacts now. Exit 2 if a graph
+    is not in the store (the others are still removed).
     """
     from stepnc_graph.api import unload
 
