@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -422,6 +423,12 @@ def blank_nodes(store: GraphStore, graph: str) -> int:
     return int(next(iter(rows))[0].value)
 
 
+def loads_own_labels(store: GraphStore) -> list[str]:
+    """Blank nodes of the store labelled as a load's text labels them (``_:b17``): unique in one
+    load, not in the store, so a replacement must never write them."""
+    return re.findall(r"_:b\d+\b", store.dump(ox.RdfFormat.N_QUADS).decode())
+
+
 def edited(tmp_path: Path) -> Path:
     """The example with the edits a re-load usually brings: a comment that shifts every line
     below it, a changed value, a list one member shorter, a new instance."""
@@ -473,7 +480,9 @@ def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: 
         [r] = sg.load(s, [new], base_iri=G, replace=True)
         assert s.last_removal == "difference" and not r.diagnostics
         staged_as(staging, s)
+        assert s.last_difference["new version dumped"] == 0  # compared as the load wrote it
         assert_as_a_fresh_load(s, G, new)
+        assert not loads_own_labels(s)
         assert all(graph_of(s, g) == theirs[g] for g in others)
         written, nodes = s.last_difference, blank_nodes(s, G)
         if version == "same file":  # at most the load's three timestamps changed
@@ -524,6 +533,28 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
         sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
         assert s.last_removal == "difference, then delete"
         assert_as_a_fresh_load(s, G, edited(tmp_path))
+        assert not loads_own_labels(s)
+
+
+def test_a_write_the_load_text_does_not_show_makes_the_replacement_dump_the_staged_store(
+        tmp_path: Path, staging: list[int]) -> None:
+    """The new version is compared as the load wrote it only when its text holds each staged
+    graph whole: a quad written otherwise (here by SPARQL Update inside the load) makes the
+    count differ, and the staged store is dumped instead -- the quad is not lost."""
+    from stepnc_graph.loader import ntriples_chunks
+
+    extra = "<urn:x> <urn:p> \"written by an update\" ."
+    with sg.open_store(tmp_path / "s") as s:
+        copies(s, 3)
+        sg.load(s, [EXAMPLE], base_iri=G)
+        text = "".join(ntriples_chunks(EXAMPLE, base_iri=G))
+        s.replace_graph(G, [text], lambda target: s.update(f"INSERT DATA {{ GRAPH <{target(G)}> {{ {extra} }} }}"),
+                        companions=(G + "/derived",))
+        assert s.last_removal == "difference" and s.last_difference["new version dumped"] == 1
+        staged_as(staging, s)
+        assert s.count(G) == text.count("\n") + 1 and not s.has_graph(G + "/derived")
+        assert s.query(f"ASK {{ GRAPH <{G}> {{ {extra} }} }}")
+        assert not loads_own_labels(s)
 
 
 @pytest.mark.parametrize("when", ["while staging", "while writing the old version out", "while deleting what changed",
@@ -623,8 +654,14 @@ def test_blank_nodes_are_matched_by_their_place_under_their_owner(tmp_path: Path
     assert match.renamed == {b"newa": b"olda", b"newb": b"oldb", b"newc": b"oldc"}
     assert match.relabel(b'_:newc <urn:value> "x _:newa" .\n') == b'_:oldc <urn:value> "x _:newa" .\n'
     assert match.relabel(b"_:newa <urn:r> _:newb .\n") == b"_:olda <urn:r> _:oldb .\n"
-    assert match.relabel(b"_:newd <urn:r> <urn:x> .\n") == b"_:newd <urn:r> <urn:x> .\n"
-    assert _BlankMatch(None, new).renamed == {} and _BlankMatch(old, None).renamed == {}
+    assert match.kept == 3
+    # an unpaired node gets a new random label, one per node (the load's own labels are unique
+    # in one load only), the same one wherever it is met
+    fresh = match.relabel(b"_:newd <urn:r> <urn:x> .\n")
+    assert re.fullmatch(rb"_:[0-9a-f]{32} <urn:r> <urn:x> \.\n", fresh)
+    assert match.relabel(b"<urn:x> <urn:r> _:newd .\n") == b"<urn:x> <urn:r> " + fresh.split(b" ")[0] + b" .\n"
+    assert match.relabel(b"_:newe <urn:r> <urn:x> .\n") != fresh
+    assert _BlankMatch(None, new).kept == 0 and _BlankMatch(old, None).kept == 0
 
 
 def test_a_large_graph_is_compared_in_parts_that_pair_equal_lines(tmp_path: Path,

@@ -118,7 +118,8 @@ class DeriveRules:
 
     def tables(self) -> DerivedTables:
         """The part of the layer the loader's mapper writes as it maps (closure, generic values, labels)."""
-        return DerivedTables(self.superclasses, self.generic, self.labels)
+        return DerivedTables(self.superclasses, self.generic, self.labels, frozenset(self.list_properties),
+                             ANALYSIS_NS + "index")
 
 
 def _is_a(model: SchemaModel) -> dict[str, set[str]]:

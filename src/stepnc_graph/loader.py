@@ -39,7 +39,7 @@ from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.sources import Source, SourceError
-from stepnc_graph.store import Chunk, Companion, GraphStore, Store
+from stepnc_graph.store import Chunk, Companion, GraphStore, Shadow, Store
 from stepnc_graph.vocabulary import ensure_vocabulary
 
 if TYPE_CHECKING:
@@ -193,6 +193,7 @@ class _Load:
                 out.clear()
                 if len(derived) >= DERIVED_CHUNK_LINES:
                     yield self.derived_chunk()
+                    yield self.shadow_chunk()
                 if self.progress:
                     self.progress(inst.end, total)
         out.extend(self.aliases())
@@ -209,6 +210,8 @@ class _Load:
         yield "".join(out) + "".join(meta)
         if derived:
             yield self.derived_chunk()
+        if self.mapper.derived_blank_lines:
+            yield self.shadow_chunk()
         if self.progress:
             self.progress(total, total)
 
@@ -217,6 +220,14 @@ class _Load:
         lines = self.mapper.derived_lines
         self.derived_written = (self.derived_written or 0) + len(lines)
         chunk = Companion(derived_graph_iri(self.graph), "".join(lines))
+        lines.clear()
+        return chunk
+
+    def shadow_chunk(self) -> Shadow:
+        """The derived-layer lines with the program's blank nodes mapped so far, which
+        :func:`derive` writes as quads: for a replacement to compare (see :class:`Shadow`)."""
+        lines = self.mapper.derived_blank_lines
+        chunk = Shadow(derived_graph_iri(self.graph), "".join(lines))
         lines.clear()
         return chunk
 

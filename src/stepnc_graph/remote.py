@@ -42,7 +42,7 @@ from urllib.parse import urlsplit, urlunsplit
 import pyoxigraph as ox
 
 from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
-from stepnc_graph.store import STAGING, Chunk, Companion, StoreError
+from stepnc_graph.store import STAGING, Chunk, Companion, Shadow, StoreError
 
 ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
 TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
@@ -120,6 +120,8 @@ def _batches(chunks: Iterable[Chunk], size: int) -> Iterator[tuple[str | None, b
     pending: list[bytes] = []
     used = 0
     for chunk in chunks:
+        if isinstance(chunk, Shadow):  # written by the load as quads (see Shadow)
+            continue
         if isinstance(chunk, Companion):
             yield chunk.graph, chunk.text.encode("utf-8")
             continue

@@ -112,13 +112,20 @@ class DerivedTables:
     the IRIs of its superclasses; ``generic``: attribute property IRI -> its
     generic property IRI; ``labels``: the its_id properties whose non-empty
     value is also an ``rdfs:label``. Values that are blank nodes (lists,
-    typed values) are left to :func:`~stepnc_graph.derive.derive`: a blank
-    node cannot be named in another graph's document.
+    typed values) are written to the store by :func:`~stepnc_graph.derive.derive`:
+    a blank node cannot be named in another graph's document. Their lines go to
+    :attr:`InstanceMapper.derived_blank_lines` instead, the blank nodes named as
+    in the program's lines, for a replacement to compare with the version in the
+    store: the generic values that are blank nodes, and ``index`` (the IRI of
+    ``sga:index``) on each cell of the lists that ``lists`` (attribute
+    property IRIs) hold, nested lists included.
     """
 
     superclasses: dict[str, tuple[str, ...]]
     generic: dict[str, str]
     labels: frozenset[str]
+    lists: frozenset[str] = frozenset()
+    index: str = ""
 
 
 class InstanceMapper:
@@ -144,6 +151,8 @@ class InstanceMapper:
         self.derived = derived
         #: derived-layer lines of the instances mapped so far (the loader takes them away)
         self.derived_lines: list[str] = []
+        #: derived-layer lines with the program's blank nodes (see DerivedTables)
+        self.derived_blank_lines: list[str] = []
         self.section = section
         self.subject = subject
         self.defined = defined
@@ -195,10 +204,7 @@ class InstanceMapper:
                 return T.integer(value)
         elif kind == "list":
             if vt is list:
-                n = len(value)
-                if enc.lower is None or n < enc.lower or (enc.upper is not None and n > enc.upper):
-                    self.lists_within_bounds = False  # reported by the shapes; an expression bound: unknown
-                return self._list(enc.element, value, out)  # type: ignore[arg-type]
+                return self._list_value(enc, value, out, None)
         elif kind == "enum":
             if vt is Enum and value in enc.items:
                 return f"<{enc.items[value]}>"
@@ -224,13 +230,29 @@ class InstanceMapper:
                                               "file or a schema constant (edition 3), which cannot be typed here")
         return Mismatch("P21-VALUE-TYPE", f"expected {enc.label}, found {describe(value)}")
 
-    def _list(self, element: Encoding, values: list[Any], out: list[str]) -> str:
+    def _list_value(self, enc: Encoding, value: list[Any], out: list[str], index: list[str] | None) -> str:
+        n = len(value)
+        if enc.lower is None or n < enc.lower or (enc.upper is not None and n > enc.upper):
+            self.lists_within_bounds = False  # reported by the shapes; an expression bound: unknown
+        return self._list(enc.element, value, out, index)  # type: ignore[arg-type]
+
+    def _list(self, element: Encoding, values: list[Any], out: list[str], index: list[str] | None = None) -> str:
+        """The head of a list of ``values``; with ``index``, the ``sga:index`` line of each cell
+        (and of the cells of lists it holds) goes there (see DerivedTables)."""
         if not values:
             return T.RDF_NIL
         head = cell = self._blank()
         last = len(values) - 1
+        nested = index is not None and element.kind == "list"
         for i, v in enumerate(values):
-            term = P21_UNSET if v is UNSET else self.encode(element, v, out)
+            if v is UNSET:
+                term = P21_UNSET
+            elif nested and type(v) is list:
+                term = self._list_value(element, v, out, index)
+            else:
+                term = self.encode(element, v, out)
+            if index is not None:
+                index.append(f"{cell} <{self.derived.index}> {T.integer(i + 1)} .\n")  # type: ignore[union-attr]
             out.append(f"{cell} {T.RDF_FIRST} {term} .\n")
             nxt = T.RDF_NIL if i == last else self._blank()
             out.append(f"{cell} {T.RDF_REST} {nxt} .\n")
@@ -255,7 +277,9 @@ class InstanceMapper:
 
     def _slots(self, s: str, slots: tuple[Slot, ...], params: list[Any], out: list[str],
                derived: list[str] | None) -> None:
-        generic = self.derived.generic if self.derived is not None and derived is not None else {}
+        on = self.derived is not None and derived is not None
+        generic = self.derived.generic if on else {}  # type: ignore[union-attr]
+        indexed = self.derived.lists if on else frozenset()  # type: ignore[union-attr]
         for slot, value in zip(slots, params, strict=True):  # counts checked by _count
             if value is UNSET:
                 if not slot.optional:
@@ -280,7 +304,10 @@ class InstanceMapper:
                     if slot.prop in generic:
                         self._generic(s, slot.prop, generic[slot.prop], members, derived)  # type: ignore[arg-type]
                 else:
-                    term = self.encode(slot.encoding, value, out)
+                    if type(value) is list and slot.encoding.kind == "list" and slot.prop in indexed:
+                        term = self._list_value(slot.encoding, value, out, self.derived_blank_lines)
+                    else:
+                        term = self.encode(slot.encoding, value, out)
                     out.append(f"{s} <{slot.prop}> {term} .\n")
                     if slot.prop in generic:
                         self._generic(s, slot.prop, generic[slot.prop], [term], derived)  # type: ignore[arg-type]
@@ -289,8 +316,10 @@ class InstanceMapper:
                     from None
 
     def _generic(self, s: str, prop: str, generic: str, members: list[str], derived: list[str]) -> None:
-        """Generic values (and the label) of one attribute, but no blank node: see DerivedTables."""
-        derived.extend(f"{s} <{generic}> {m} .\n" for m in members if m[0] != "_")
+        """Generic values (and the label) of one attribute; those that are blank nodes apart: see
+        DerivedTables."""
+        for m in members:
+            (derived if m[0] != "_" else self.derived_blank_lines).append(f"{s} <{generic}> {m} .\n")
         if prop in self.derived.labels:  # type: ignore[union-attr]
             derived.extend(f"{s} {T.RDFS_LABEL} {m} .\n" for m in members if m[0] == '"' and m[1] != '"')
 
@@ -317,6 +346,7 @@ class InstanceMapper:
             return
         lines: list[str] = []
         labels: list[tuple[str, Any]] = []
+        blank_mark = len(self.derived_blank_lines)
         derived: list[str] | None = [] if self.derived is not None else None
         try:
             if inst.parts is None:
@@ -341,6 +371,7 @@ class InstanceMapper:
                     if plan.own_its_id is not None:
                         labels.append((plan.own_slots[plan.own_its_id].entity, params[plan.own_its_id]))
         except Mismatch as m:
+            del self.derived_blank_lines[blank_mark:]  # the instance goes raw: none of its values
             # the rare path: report the mismatch and every reference the file does not define
             refs = sorted(set(_refs(inst)))
             if m.code != "P21-UNRESOLVED-REF":

@@ -8,6 +8,7 @@ through rdflib or pyoxigraph term objects costs several times more per triple).
 from __future__ import annotations
 
 import math
+from decimal import Decimal
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
@@ -22,7 +23,12 @@ RDF_REST = f"<{RDF}rest>"
 RDF_NIL = f"<{RDF}nil>"
 RDFS_LABEL = "<http://www.w3.org/2000/01/rdf-schema#label>"
 
-_ESCAPES = str.maketrans({"\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r"})
+#: N-Triples escapes as Oxigraph writes them (quote, backslash, the named control characters,
+#: other C0 controls and DEL as \\u00XX), so that a line of this text is byte for byte the line
+#: a dump of the store writes back: a replacement compares the two (store.GraphStore).
+_ESCAPES = str.maketrans({**{chr(c): f"\\u{c:04X}" for c in [*range(0x20), 0x7F]},
+                          "\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r", "\t": "\\t",
+                          "\b": "\\b", "\f": "\\f"})
 
 
 def iri(value: str) -> str:
@@ -35,8 +41,15 @@ def string(value: str) -> str:
 
 
 def double(value: float) -> str:
+    """An xsd:double literal in the form Oxigraph stores and writes it back: the shortest digits
+    that read back as the value, positional, no trailing ".0" (6.0 -> "6", 1e-07 -> "0.0000001")."""
     if math.isfinite(value):
-        return f'"{value!r}"^^{T_DOUBLE}'
+        text = repr(value)
+        if "e" in text:  # rare: Python's exponent form, written out as Rust's Display does
+            text = format(Decimal(text), "f")
+        elif text.endswith(".0"):
+            text = text[:-2]
+        return f'"{text}"^^{T_DOUBLE}'
     return f'"{"NaN" if math.isnan(value) else ("INF" if value > 0 else "-INF")}"^^{T_DOUBLE}'
 
 
