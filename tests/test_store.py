@@ -536,6 +536,33 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
         assert not loads_own_labels(s)
 
 
+def test_a_fallback_that_does_not_add_up_either_changes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """If the graphs loaded whole do not end with the staged counts either (here: one line of
+    the new version lost on the way), the replacement fails and the store stays as it was."""
+    real = GraphStore._apply_difference
+
+    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> dict[str, int]:
+        counts = real(self, *args, **kwargs)  # type: ignore[arg-type]
+        self.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
+        return counts
+
+    def lose_a_line(new: dict[str, Path | None], match: object, path: Path) -> Path:
+        path = real_relabelled(new, match, path)  # type: ignore[arg-type]
+        path.write_bytes(b"".join(path.read_bytes().splitlines(keepends=True)[1:]))
+        return path
+
+    real_relabelled = GraphStore._relabelled
+    monkeypatch.setattr(GraphStore, "_apply_difference", apply_and_spoil)
+    monkeypatch.setattr(GraphStore, "_relabelled", staticmethod(lose_a_line))
+    with sg.open_store(tmp_path / "s") as s:
+        copies(s, 3)
+        sg.load(s, [EXAMPLE], base_iri=G)
+        before, quads_before = graph_of(s, G), program_quads(s, G)
+        with pytest.raises(StoreError, match="did not add up"):
+            sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
+        assert graph_of(s, G) == before and program_quads(s, G) == quads_before
+
+
 def test_a_write_the_load_text_does_not_show_makes_the_replacement_dump_the_staged_store(
         tmp_path: Path, staging: list[int]) -> None:
     """The new version is compared as the load wrote it only when its text holds each staged

@@ -843,6 +843,9 @@ class GraphStore:
                 deleted += self._quads_in(present)
                 self._delete_in_batches(present)
                 self._insert(self._relabelled(new, match, scratch / "whole.nq"))
+                if any(staged_counts[n] != self.count(n) for n in new):  # rolled back: never a wrong graph
+                    raise StoreError(f"replacing {graph} did not add up (the new version's quads differ from "
+                                     "what was staged); the store is unchanged")
             return deleted
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
