@@ -49,7 +49,9 @@ loads when it compacts. A replacement there writes only what changed
 (:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
 one costs 0.8-1.25 loads, where deleting the old version and loading the new one cost
 2.1-2.5 (100k instances beside three such programs, measured); a program of 1M instances
-is staged on disk (see docs/loading.md). The deletes' write-ahead log is dropped at once
+is staged on disk, and costs 1.5-1.65 loads there (see docs/loading.md). The new version is
+compared as the load wrote it (:class:`Shadow`, :class:`_Tee`); only the old one is dumped
+from the store. The deletes' write-ahead log is dropped at once
 (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed quads used
 stay until :meth:`GraphStore.compact` rebuilds the database.
 
