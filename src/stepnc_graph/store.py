@@ -362,7 +362,6 @@ class GraphStore:
         self._deletes_logged = False  # work/'s write-ahead log holds batched deletes (see _commit)
         self._parked: ox.Store | None = None  # the database on disk while a replacement is staged
         self._tee: _Tee | None = None  # the text of a replacement's new version (see _stage)
-        self._new_dumped = False  # whether the last replacement dumped its staged store
         if self.path is None:
             self._store = ox.Store()
             return
@@ -830,22 +829,26 @@ class GraphStore:
         shutil.rmtree(scratch, ignore_errors=True)
         scratch.mkdir()
         try:
-            new, old = self._stage(graph, chunks, before_commit, [graph, *companions], scratch, in_memory)
+            new, old, dumped = self._stage(graph, chunks, before_commit, [graph, *companions], scratch, in_memory)
             _give_back_freed_memory()  # the staged store was the peak of an in-memory replacement
             shutil.rmtree(scratch / "staged", ignore_errors=True)
             self.last_removal = "difference"
             match = _BlankMatch(old[graph], new[graph])
             staged_counts = self._apply_difference(old, new, match, scratch)
             self.last_difference["staged in memory"] = int(in_memory)
-            self.last_difference["new version dumped"] = int(self._new_dumped)
+            self.last_difference["new version dumped"] = int(dumped)
             deleted = self.last_difference["deleted"]
-            if any(staged_counts[n] != self.count(n) for n in new):
+
+            def adds_up() -> bool:
+                return all(staged_counts[n] == self.count(n) for n in new)
+
+            if not adds_up():
                 self.last_removal = "difference, then delete"
                 present = [n for n in new if self.has_graph(n)]
                 deleted += self._quads_in(present)
                 self._delete_in_batches(present)
                 self._insert(self._relabelled(new, match, scratch / "whole.nq"))
-                if any(staged_counts[n] != self.count(n) for n in new):  # rolled back: never a wrong graph
+                if not adds_up():  # rolled back: never a wrong graph
                     raise StoreError(f"replacing {graph} did not add up (the new version's quads differ from "
                                      "what was staged); the store is unchanged")
             return deleted
@@ -853,12 +856,13 @@ class GraphStore:
             shutil.rmtree(scratch, ignore_errors=True)
 
     def _stage(self, graph: str, chunks: Iterable[Chunk], before_commit: Callable[[Callable[[str], str]], None] | None,
-               names: list[str], scratch: Path, in_memory: bool) -> tuple[dict[str, Path | None], dict[str, Path | None]]:
+               names: list[str], scratch: Path,
+               in_memory: bool) -> tuple[dict[str, Path | None], dict[str, Path | None], bool]:
         """Load the new version of ``graph`` into a store of its own (in memory, or in
         ``scratch/staged``) and complete it there, while the old version of the graphs ``names``
         is written out. Returns the N-Triples files of the new and of the old version, graph by
-        graph (None: no such graph); the vocabulary graph is among them when the load rewrote it.
-        The staged store is dropped on return.
+        graph (None: no such graph; the vocabulary graph is among them when the load rewrote it),
+        and whether the new version was dumped (see below). The staged store is dropped on return.
 
         The new version's files are the text the load wrote (:class:`_Tee`: its chunks, its
         :class:`Shadow` lines, what ``before_commit`` added as N-Triples), when each holds as
@@ -903,22 +907,21 @@ class GraphStore:
             self._store, self._parked = self._parked, None
         if errors:
             raise errors[0]
-        new = tee.new_version(staged)
-        self._new_dumped = new is None
-        if new is None:
+        teed = tee.new_version(staged)
+        if teed is None:
             for path in tee.paths.values():
                 path.unlink(missing_ok=True)
-            new = {}
-        else:
-            names = []  # only the vocabulary is still to be dumped, if the load rewrote it
+        to_dump = names if teed is None else []  # and the vocabulary, if the load rewrote it
         if staged.contains_named_graph(vocabulary) and self._count_in(staged, VOCABULARY_GRAPH) != seeded:
-            names = [*names, VOCABULARY_GRAPH]
+            to_dump = [*to_dump, VOCABULARY_GRAPH]
             old[VOCABULARY_GRAPH] = self._dump_graph(self._db, VOCABULARY_GRAPH, scratch / "old-vocabulary.nt")
         _give_back_freed_memory()  # what completing the graph took, before its dump
+        new = dict(teed or {})
         with ThreadPoolExecutor(LOAD_THREADS) as pool:  # the dumps release the GIL: the graphs side by side
-            paths = pool.map(lambda k: self._dump_graph(staged, names[k], scratch / f"staged{k}.nt"), range(len(names)))
-            new.update(zip(names, paths, strict=True))
-        return new, old
+            paths = pool.map(lambda k: self._dump_graph(staged, to_dump[k], scratch / f"staged{k}.nt"),
+                             range(len(to_dump)))
+            new.update(zip(to_dump, paths, strict=True))
+        return new, old, teed is None
 
     @staticmethod
     def _relabelled(new: dict[str, Path | None], match: _BlankMatch, path: Path) -> Path:
