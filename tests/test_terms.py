@@ -32,6 +32,11 @@ def test_doubles_written_positionally() -> None:
     assert T.double(1e-7) == f'"0.0000001"^^{T.T_DOUBLE}'
     assert T.double(1.25e20) == f'"125000000000000000000"^^{T.T_DOUBLE}'
     assert T.double(float("inf")) == f'"INF"^^{T.T_DOUBLE}'
+    # halfway between two shortest forms: away from zero, as Rust (Python's repr takes the even one)
+    assert T.double(562949953421312.25) == f'"562949953421312.3"^^{T.T_DOUBLE}'
+    assert T.double(-562949953421312.25) == f'"-562949953421312.3"^^{T.T_DOUBLE}'
+    assert T.double(562949953421312.75) == f'"562949953421312.8"^^{T.T_DOUBLE}'
+    assert T.double(0.25) == f'"0.25"^^{T.T_DOUBLE}'
 
 
 @given(st.text())

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from decimal import Decimal
+from fractions import Fraction
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
@@ -49,8 +50,24 @@ def double(value: float) -> str:
             text = format(Decimal(text), "f")
         elif text.endswith(".0"):
             text = text[:-2]
+        elif "." in text:
+            text = _tie_away_from_zero(value, text)
         return f'"{text}"^^{T_DOUBLE}'
     return f'"{"NaN" if math.isnan(value) else ("INF" if value > 0 else "-INF")}"^^{T_DOUBLE}'
+
+
+def _tie_away_from_zero(value: float, text: str) -> str:
+    """``text`` (Python's shortest digits of ``value``) as Rust writes them: when the value lies
+    exactly halfway between two shortest digit strings (562949953421312.25), Python takes the
+    even last digit and Rust the one away from zero ("...312.2" against "...312.3")."""
+    places = len(text) - text.index(".") - 1
+    num, den = value.as_integer_ratio()
+    if den > 2 * 10 ** places:  # the exact value has more digits than a halfway point: no tie
+        return text
+    exact, shown = Fraction(num, den), Fraction(text)
+    if abs(exact) - abs(shown) != Fraction(1, 2 * 10 ** places):
+        return text
+    return text[:-1] + str(int(text[-1]) + 1)  # an even digit: no carry
 
 
 def integer(value: int) -> str:
