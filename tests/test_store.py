@@ -481,6 +481,7 @@ def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: 
         assert s.last_removal == "difference" and not r.diagnostics
         staged_as(staging, s)
         assert s.last_difference["new version dumped"] == 0  # compared as the load wrote it
+        assert s.last_difference["old version kept"] == 2  # the old one too (stepnc_graph.kept)
         assert_as_a_fresh_load(s, G, new)
         assert not loads_own_labels(s)
         assert all(graph_of(s, g) == theirs[g] for g in others)
@@ -612,6 +613,11 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
                     raise OSError("disk full (injected)")
                 return real_dump(store, name, path)
 
+            def fail_kept(path: Path, out: object) -> None:
+                raise OSError("disk full (injected)")
+
+            # the kept text fails (the old version is then dumped), and so does the dump
+            monkeypatch.setattr(store_module, "read_without_blank_nodes", fail_kept)
             monkeypatch.setattr(GraphStore, "_dump_graph", staticmethod(fail_old))
         elif when == "while deleting what changed":
             monkeypatch.setattr(GraphStore, "_delete_lines", fail_after(GraphStore._delete_lines))

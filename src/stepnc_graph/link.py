@@ -235,22 +235,21 @@ class ProgramIndex:
     def __init__(self, store: GraphStore, graph: str, plans: Plans) -> None:
         self.graph, self.plans = graph, plans
         g = ox.NamedNode(graph)
-        db = store.oxigraph
         self.ids = {int(str(q.object.value)): q.subject.value  # type: ignore[union-attr]
-                    for q in db.quads_for_pattern(None, ox.NamedNode(P21_NS + "id"), None, g)}
+                    for q in store.quads_for_pattern(None, ox.NamedNode(P21_NS + "id"), None, g)}
         number = {iri: n for n, iri in self.ids.items()}
         scopes = {plan.slots[plan.its_id].prop: plan.slots[plan.its_id].entity
                   for plan in plans.entities.values() if plan.its_id is not None}
         self.labels: dict[str, list[Labelled]] = defaultdict(list)
         for prop, scope in sorted(scopes.items()):
-            for q in db.quads_for_pattern(None, ox.NamedNode(prop), None, g):
+            for q in store.quads_for_pattern(None, ox.NamedNode(prop), None, g):
                 if isinstance(q.object, ox.Literal) and isinstance(q.subject, ox.NamedNode):
-                    classes = [t.object.value for t in db.quads_for_pattern(q.subject, ox.NamedNode(RDF_TYPE), None, g)
+                    classes = [t.object.value for t in store.quads_for_pattern(q.subject, ox.NamedNode(RDF_TYPE), None, g)
                                if isinstance(t.object, ox.NamedNode)]
                     types = tuple(sorted(self.plans.by_class[c].name for c in classes if c in self.plans.by_class))
                     self.labels[q.object.value].append(
                         Labelled(q.subject.value, number.get(q.subject.value), scope, types))
-        self.aliases = {q.subject.value for q in db.quads_for_pattern(None, ox.NamedNode(OWL_SAME_AS), None, g)
+        self.aliases = {q.subject.value for q in store.quads_for_pattern(None, ox.NamedNode(OWL_SAME_AS), None, g)
                         if isinstance(q.subject, ox.NamedNode)}
 
     def subject(self, row: Row) -> str:
@@ -348,7 +347,7 @@ def _refuse_other_mapping(store: GraphStore, target: str, path: Path, replace: b
     if replace or not store.has_graph(target):
         return
     node = ox.NamedNode(target)
-    held = [q.object.value for q in store.oxigraph.quads_for_pattern(node, ox.NamedNode(DCT + "source"), None, node)
+    held = [q.object.value for q in store.quads_for_pattern(node, ox.NamedNode(DCT + "source"), None, node)
             if isinstance(q.object, ox.Literal)]
     if held and str(path.resolve()) not in held:
         raise SourceError(f"link graph <{target}> holds the links of {held[0]}, not {path.resolve()}; pass --replace "

@@ -78,6 +78,7 @@ import threading
 import time
 import traceback
 import uuid
+import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -86,6 +87,7 @@ from typing import Any, Protocol
 
 import pyoxigraph as ox
 
+from stepnc_graph.kept import KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
 from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
 
 STORE_ENV = "STEPNC_GRAPH_STORE"
@@ -269,11 +271,11 @@ class StoreBusy(StoreError):
 
 
 class _ChunkStream(io.RawIOBase):
-    """A binary file over an iterator of text chunks, for Oxigraph's streaming loader."""
+    """A binary file over an iterator of encoded chunks, for Oxigraph's streaming loader."""
 
-    def __init__(self, chunks: Iterable[str]) -> None:
-        self._chunks: Iterator[str] = iter(chunks)
-        self._buffer = b""
+    def __init__(self, chunks: Iterable[bytes]) -> None:
+        self._chunks: Iterator[bytes] = iter(chunks)
+        self._buffer = memoryview(b"")
 
     def readable(self) -> bool:
         return True
@@ -283,7 +285,7 @@ class _ChunkStream(io.RawIOBase):
             chunk = next(self._chunks, None)
             if chunk is None:
                 return 0
-            self._buffer = chunk.encode("utf-8")
+            self._buffer = memoryview(chunk)
         n = min(len(target), len(self._buffer))
         target[:n] = self._buffer[:n]
         self._buffer = self._buffer[n:]
@@ -361,10 +363,17 @@ class GraphStore:
         self._deleted_after: int | None = None  # deleted_quads once this write commits (see _settle)
         self._deletes_logged = False  # work/'s write-ahead log holds batched deletes (see _commit)
         self._parked: ox.Store | None = None  # the database on disk while a replacement is staged
-        self._tee: _Tee | None = None  # the text of a replacement's new version (see _stage)
+        self._tee: _Tee | None = None  # the text a load writes (see _Tee)
+        #: the generation the running write started from (None: no write runs), the texts it kept
+        #: and the graphs it touched (None: perhaps any), for the kept texts' index (see
+        #: stepnc_graph.kept)
+        self._since: str | None = None
+        self._kept_written: dict[str, KeptText] = {}
+        self._touched: set[str] | None = set()
         if self.path is None:
             self._store = ox.Store()
             return
+        self._kept = KeptTexts(self._file("kept"))
         self._check_directory(create and not readonly)
         try:
             if readonly:
@@ -456,6 +465,7 @@ class GraphStore:
             self._recover()
             self._store = ox.Store(str(self._file("work")))
         self._collect()
+        self._kept.collect()
 
     def _open_reader(self) -> None:
         if (self._file("oxigraph")).exists():  # format 1: needs the writer to migrate it
@@ -525,6 +535,7 @@ class GraphStore:
         if not dirty.exists():
             dirty.write_text("")
             _fsync_dir(self.path)
+        self._since = self._current()
 
     def _publish(self) -> None:
         """Checkpoint ``work/`` as the next generation and name it in ``CURRENT``."""
@@ -572,6 +583,10 @@ class GraphStore:
             self._drop_write_ahead_log()
         self._publish()
         self._count_deleted()
+        written, touched, since = self._kept_written, self._touched, self._since
+        self._kept_written, self._touched, self._since = {}, set(), None
+        assert self.generation is not None
+        self._kept.publish(self.generation, since, written, touched)
         self._collect()
 
     def _count_deleted(self) -> None:
@@ -640,6 +655,9 @@ class GraphStore:
             return
         self._deletes_logged = False  # work/ is rebuilt from the published generation
         self._deleted_after = None
+        for kept in self._kept_written.values():
+            self._kept.path(kept).unlink(missing_ok=True)
+        self._kept_written, self._touched, self._since = {}, set(), None
         old, self._store = self._store, None
         # Called while an exception propagates. If anything still references the database (a
         # frame of that exception's traceback, typically after Ctrl-C, or a caller's
@@ -736,17 +754,17 @@ class GraphStore:
             return
         self._begin()
         self.compacted = False
+        kept = self._usable_kept()
+        self._touch([graph, *companions, VOCABULARY_GRAPH])
         try:
             how, present, removed, held = self._removal([graph, *companions])
             if how == "delete":
-                deleted = self._replace_by_difference(graph, chunks, before_commit, companions,
+                deleted = self._replace_by_difference(graph, chunks, before_commit, companions, kept,
                                                       in_memory=removed <= STAGE_IN_MEMORY_QUADS)
                 self._settle(deleted, held)
             else:
                 self._remove(how, present)
-                self._bulk_load(graph, chunks)
-                if before_commit is not None:
-                    before_commit(lambda name: name)
+                self._load_kept(graph, chunks, before_commit, [graph, *companions])
             self._commit()
         except BaseException:
             self._rollback()
@@ -766,6 +784,7 @@ class GraphStore:
             return True
         self._begin()
         self.compacted = False
+        self._touch([graph, *companions])
         try:
             how, present, removed, held = self._removal([graph, *companions])
             self._remove(how, present)
@@ -776,6 +795,38 @@ class GraphStore:
             self._rollback()
             raise
         return True
+
+    def _usable_kept(self) -> dict[str, KeptText]:
+        """The kept texts that describe the database now: those of the generation it was
+        published as, but for graphs changed since by writes outside a load."""
+        if self._touched is None:
+            return {}
+        return {g: k for g, k in self._kept.valid(self._since).items() if g not in self._touched}
+
+    def _touch(self, graphs: Sequence[str] | None) -> None:
+        """Note that the current write changes ``graphs`` (None: perhaps any), whose kept texts
+        then describe them no more (see :mod:`stepnc_graph.kept`)."""
+        if graphs is None:
+            self._touched = None
+        elif self._touched is not None:
+            self._touched.update(graphs)
+
+    def _load_kept(self, graph: str, chunks: Iterable[Chunk],
+                   before_commit: Callable[[Callable[[str], str]], None] | None, names: list[str]) -> None:
+        """Load ``graph`` into the database as it is (no old version there), complete it, and keep
+        the text written into the graphs ``names`` (:mod:`stepnc_graph.kept`)."""
+        self._tee = tee = _Tee(names, kept=self._kept.writing(names))
+        try:
+            self._bulk_load(graph, chunks)
+            if before_commit is not None:
+                before_commit(lambda name: name)
+        except BaseException:
+            tee.discard()
+            raise
+        finally:
+            self._tee = None
+            tee.close()
+        self._kept_written.update(tee.keep())
 
     def _quads_in(self, graphs: Sequence[str]) -> int:
         return sum(self.count(g) for g in graphs if self.has_graph(g))
@@ -803,7 +854,8 @@ class GraphStore:
 
     def _replace_by_difference(self, graph: str, chunks: Iterable[Chunk],
                                before_commit: Callable[[Callable[[str], str]], None] | None,
-                               companions: Sequence[str], in_memory: bool = True) -> int:
+                               companions: Sequence[str], kept: dict[str, KeptText],
+                               in_memory: bool = True) -> int:
         """Replace ``graph`` and its companions by writing only the quads that changed; returns
         how many quads were deleted.
 
@@ -829,7 +881,8 @@ class GraphStore:
         shutil.rmtree(scratch, ignore_errors=True)
         scratch.mkdir()
         try:
-            new, old, dumped = self._stage(graph, chunks, before_commit, [graph, *companions], scratch, in_memory)
+            new, old, dumped = self._stage(graph, chunks, before_commit, [graph, *companions], scratch, in_memory,
+                                           kept)
             _give_back_freed_memory()  # the staged store was the peak of an in-memory replacement
             shutil.rmtree(scratch / "staged", ignore_errors=True)
             self.last_removal = "difference"
@@ -856,11 +909,11 @@ class GraphStore:
             shutil.rmtree(scratch, ignore_errors=True)
 
     def _stage(self, graph: str, chunks: Iterable[Chunk], before_commit: Callable[[Callable[[str], str]], None] | None,
-               names: list[str], scratch: Path,
-               in_memory: bool) -> tuple[dict[str, Path | None], dict[str, Path | None], bool]:
+               names: list[str], scratch: Path, in_memory: bool,
+               kept: dict[str, KeptText]) -> tuple[dict[str, Path | None], dict[str, Path | None], bool]:
         """Load the new version of ``graph`` into a store of its own (in memory, or in
         ``scratch/staged``) and complete it there, while the old version of the graphs ``names``
-        is written out. Returns the N-Triples files of the new and of the old version, graph by
+        is written out (from the text its load kept, :meth:`_old_from_kept`, or dumped). Returns the N-Triples files of the new and of the old version, graph by
         graph (None: no such graph; the vocabulary graph is among them when the load rewrote it),
         and whether the new version was dumped (see below). The staged store is dropped on return.
 
@@ -877,15 +930,27 @@ class GraphStore:
         seeded = len(staged)
         old: dict[str, Path | None] = {}
         errors: list[BaseException] = []
+        from_kept: list[str] = []
+
+        def old_version(k: int) -> Path | None:
+            name, path = names[k], scratch / f"old{k}.nt"
+            try:
+                if not self._disk.contains_named_graph(ox.NamedNode(name)):
+                    return None
+                if name in kept and self._old_from_kept(name, kept[name], path):
+                    from_kept.append(name)
+                    return path
+                return self._dump_graph(self._disk, name, path)
+            except BaseException as exc:  # a graph's failure is held by its future, maybe never raised
+                traceback.clear_frames(exc.__traceback__)  # its frames' locals hold the database
+                raise
 
         def dump_old() -> None:
-            """The old version is written out while the new one is staged (Oxigraph's dump
-            releases the GIL: measured, 4 s of a 100k-instance program's 1.3M quads)."""
+            """The old version is written out while the new one is staged (from its kept text, or
+            dumped: Oxigraph's dump releases the GIL, 4 s of a 100k-instance program's 1.3M quads)."""
             try:
                 with ThreadPoolExecutor(len(names)) as pool:  # a dump is one thread: the graphs side by side
-                    paths = pool.map(lambda k: self._dump_graph(self._disk, names[k], scratch / f"old{k}.nt"),
-                                     range(len(names)))
-                    old.update(zip(names, paths, strict=True))
+                    old.update(zip(names, pool.map(old_version, range(len(names))), strict=True))
             except BaseException as exc:  # noqa: BLE001 -- raised by the replacement below
                 traceback.clear_frames(exc.__traceback__)  # its frames' locals hold the database
                 errors.append(exc)
@@ -893,24 +958,32 @@ class GraphStore:
         # The database on disk is parked in an attribute, never in a local of this frame: a
         # failure's traceback must not keep it open, or the rollback could not reopen it.
         self._parked, self._store = self._store, staged
-        self._tee = tee = _Tee(scratch, names)
+        self._tee = tee = _Tee(names, scratch, self._kept.writing(names))
         dumping = threading.Thread(target=dump_old, daemon=True)
         dumping.start()
         try:
-            self._bulk_load(graph, chunks, in_memory=in_memory)
-            if before_commit is not None:
-                before_commit(lambda name: name)
-        finally:
-            self._tee = None
-            tee.close()
-            dumping.join()
-            self._store, self._parked = self._parked, None
-        if errors:
-            raise errors[0]
-        teed = tee.new_version(staged)
+            try:
+                self._bulk_load(graph, chunks, in_memory=in_memory)
+                if before_commit is not None:
+                    before_commit(lambda name: name)
+            finally:
+                self._tee = None
+                tee.close()
+                dumping.join()
+                self._store, self._parked = self._parked, None
+            if errors:
+                raise errors[0]
+            teed = tee.new_version(staged)
+        except BaseException:
+            tee.discard()
+            raise
+        self.last_difference = {"old version kept": len(from_kept)}
         if teed is None:
+            tee.discard()
             for path in tee.paths.values():
                 path.unlink(missing_ok=True)
+        else:
+            self._kept_written.update(tee.keep())
         to_dump = names if teed is None else []  # and the vocabulary, if the load rewrote it
         if staged.contains_named_graph(vocabulary) and self._count_in(staged, VOCABULARY_GRAPH) != seeded:
             to_dump = [*to_dump, VOCABULARY_GRAPH]
@@ -922,6 +995,33 @@ class GraphStore:
                              range(len(to_dump)))
             new.update(zip(to_dump, paths, strict=True))
         return new, old, teed is None
+
+    def _old_from_kept(self, name: str, kept: KeptText, path: Path) -> bool:
+        """Write graph ``name`` of the database to ``path`` as N-Triples from the text its load
+        kept (see :mod:`stepnc_graph.kept`): the lines without blank node as kept, the others
+        read from the database, predicate by predicate (their blank nodes are named there as the
+        bulk loader named them: 6 s for a 1M-instance program's 1.66M such lines, where the dumps
+        of its two graphs take about 120 s of CPU). False, and nothing to use, when the file is
+        damaged or the line counts differ from the database's."""
+        db, node = self._disk, ox.NamedNode(name)
+        try:
+            with open(path, "wb", buffering=1 << 20) as out:
+                found = read_without_blank_nodes(self._kept.path(kept), out)
+                if found.lines + found.blank != kept.lines:
+                    return False
+                read = 0
+                for predicate in sorted(found.predicates):
+                    p = predicate.decode("utf-8")
+                    triples = db.query(f"CONSTRUCT {{ ?s {p} ?o }} WHERE {{ GRAPH {node} {{ ?s {p} ?o "
+                                       f"FILTER(isBlank(?s) || isBlank(?o)) }} }}")
+                    assert isinstance(triples, ox.QueryTriples)
+                    text = triples.serialize(format=ox.RdfFormat.N_TRIPLES) or b""
+                    read += text.count(b"\n")
+                    out.write(text)
+                    del triples, text  # a query's result holds the database open
+        except (OSError, EOFError, zlib.error, UnicodeDecodeError, SyntaxError):
+            return False
+        return read == found.blank and found.lines + read == self._count_in(db, name)
 
     @staticmethod
     def _relabelled(new: dict[str, Path | None], match: _BlankMatch, path: Path) -> Path:
@@ -994,8 +1094,8 @@ class GraphStore:
             deleter.close()
         self._insert(inserts)
         self._deletes_logged = True
-        self.last_difference = {"deleted": deleted, "inserted": inserted, "inserted with a blank node": blank,
-                                "blank nodes kept": match.kept}
+        self.last_difference.update({"deleted": deleted, "inserted": inserted, "inserted with a blank node": blank,
+                                     "blank nodes kept": match.kept})
         return lines
 
     def _delete_lines(self, node: ox.NamedNode, path: Path, unflushed: int = 0) -> int:
@@ -1141,14 +1241,16 @@ class GraphStore:
         """
         in_memory = self.path is None if in_memory is None else in_memory
         threads_n = 1 if in_memory else LOAD_THREADS  # see MEMORY_BATCH_CHARS
-        work: queue.Queue[str | Companion | None] = queue.Queue(maxsize=2 * threads_n)
+        # the chunks encoded once (here, also for the tee): the main graph's as bytes, a
+        # companion's as (its graph, bytes)
+        work: queue.Queue[bytes | tuple[str, bytes] | None] = queue.Queue(maxsize=2 * threads_n)
         errors: list[BaseException] = []
         main = ox.NamedNode(graph)
         finished = threading.Event()
         # No local name holds the database: a failure's traceback keeps this frame
         # alive, and the rollback must be able to close the database.
 
-        def pull(budget: int, large: list[str | Companion]) -> Iterator[str]:
+        def pull(budget: int, large: list[bytes | tuple[str, bytes]]) -> Iterator[bytes]:
             """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth;
             a chunk too large for the streaming reader, or a companion's, ends the call and
             goes to ``large``."""
@@ -1158,7 +1260,7 @@ class GraphStore:
                 if item is None:
                     finished.set()
                     return
-                if type(item) is not str or len(item) > DIRECT_CHARS:
+                if type(item) is not bytes or len(item) > DIRECT_CHARS:
                     large.append(item)
                     return
                 used += len(item)
@@ -1167,20 +1269,18 @@ class GraphStore:
         def worker() -> None:
             try:
                 while not finished.is_set():
-                    large: list[str | Companion] = []
+                    large: list[bytes | tuple[str, bytes]] = []
                     if in_memory:
-                        text = "".join(pull(MEMORY_BATCH_CHARS, large))
-                        if text:
-                            self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=main,
-                                               lenient=True)
+                        data = b"".join(pull(MEMORY_BATCH_CHARS, large))
+                        if data:
+                            self._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=main, lenient=True)
                     else:
                         stream = io.BufferedReader(_ChunkStream(pull(BATCH_CHARS, large)), 1 << 20)
                         self._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=main, lenient=True)
                     for item in large:
-                        into, text = ((ox.NamedNode(target(item.graph)), item.text) if isinstance(item, Companion)
+                        into, data = ((ox.NamedNode(target(item[0])), item[1]) if isinstance(item, tuple)
                                       else (main, item))
-                        self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=into,
-                                           lenient=True)
+                        self._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=into, lenient=True)
             except BaseException as exc:  # noqa: BLE001 -- handed to the producer thread
                 errors.append(exc)
                 finished.set()
@@ -1194,10 +1294,14 @@ class GraphStore:
             for chunk in chunks:
                 if errors:
                     break
+                into, data = (graph, chunk.encode("utf-8")) if type(chunk) is str else (
+                    chunk.graph, chunk.text.encode("utf-8"))  # type: ignore[union-attr]
                 if self._tee is not None:
-                    self._tee.chunk(graph, chunk)
-                if not isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
-                    work.put(chunk)
+                    self._tee.write_bytes(into, data)
+                if type(chunk) is str:
+                    work.put(data)
+                elif not isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
+                    work.put((into, data))
         finally:
             for _ in threads:
                 work.put(None)
@@ -1231,8 +1335,14 @@ class GraphStore:
                                        f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
 
     def update(self, sparql: str) -> None:
-        """One SPARQL Update (one transaction); for writes inside a load's ``before_commit``."""
+        """One SPARQL Update (one transaction); for writes inside a load's ``before_commit``
+        (into the graphs of that load: outside a load, it may have changed any graph)."""
+        self._touch_any_outside_a_write()
         self._db.update(sparql)
+
+    def _touch_any_outside_a_write(self) -> None:
+        if self._since is None:
+            self._touch(None)
 
     def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
         """Add N-Triples to ``graph`` (for use inside ``before_commit``): in one transaction, or
@@ -1240,6 +1350,7 @@ class GraphStore:
         around it is)."""
         if self._tee is not None:
             self._tee.write(graph, text)
+        self._touch([graph])
         if bulk or len(text) > DIRECT_CHARS:
             for piece in _line_pieces(text, BATCH_CHARS):  # the bulk loader's memory grows with a call
                 self._db.bulk_load(piece.encode("utf-8"), ox.RdfFormat.N_TRIPLES, to_graph=ox.NamedNode(graph))
@@ -1251,6 +1362,7 @@ class GraphStore:
         :data:`TRANSACTION_QUADS` in one transaction, more through the bulk loader in calls of
         :data:`INSERT_BATCH` (a transaction holds all of its quads in memory, several times
         their size). Returns how many were added."""
+        self._touch_any_outside_a_write()
         it = iter(quads)
         first = list(itertools.islice(it, TRANSACTION_QUADS + 1))
         if len(first) <= TRANSACTION_QUADS:
@@ -1261,6 +1373,7 @@ class GraphStore:
     def add_turtle(self, graph: str, text: str) -> None:
         """Add a Turtle document to ``graph`` (inside ``before_commit``, like :meth:`add_ntriples`):
         parsed by Oxigraph in one call, with no Python object per triple."""
+        self._touch([graph])
         self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.TURTLE, to_graph=ox.NamedNode(graph))
 
     def compact(self, progress: Callable[[int, int], None] | None = None) -> None:
@@ -1319,6 +1432,11 @@ class GraphStore:
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
         return iter(self._db.quads_for_pattern(None, None, None, ox.NamedNode(graph) if graph else None))
 
+    def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]:
+        """Oxigraph's ``quads_for_pattern``, for readers (unlike :attr:`oxigraph`, it keeps the
+        kept texts of a writer valid)."""
+        return iter(self._db.quads_for_pattern(subject, predicate, obj, graph))
+
     def dump(self, fmt: ox.RdfFormat, graph: str | None = None, prefixes: dict[str, str] | None = None) -> bytes:
         kwargs: dict[str, Any] = {}
         if graph is not None:
@@ -1330,7 +1448,11 @@ class GraphStore:
 
     @property
     def oxigraph(self) -> ox.Store:
-        """The underlying pyoxigraph store (for SPARQL users who want it directly)."""
+        """The underlying pyoxigraph store (for SPARQL users who want it directly). Writes through
+        it are not seen by the store: a writer that hands it out keeps no load's text beyond its
+        next write (see :mod:`stepnc_graph.kept`)."""
+        if not self.readonly:
+            self._touch(None)
         return self._db
 
     def rdflib_dataset(self) -> Any:
@@ -1338,7 +1460,7 @@ class GraphStore:
         import rdflib
         from oxrdflib.store import OxigraphStore
 
-        return rdflib.Dataset(store=OxigraphStore(store=self._db))
+        return rdflib.Dataset(store=OxigraphStore(store=self.oxigraph))
 
 
 class _Deleter:
@@ -1397,34 +1519,48 @@ class _Deleter:
 
 
 class _Tee:
-    """The text a replacement's load writes into the graphs ``names``, kept in files of
-    ``scratch`` graph by graph as it goes by (see :meth:`GraphStore._stage`)."""
+    """The text a load writes into the graphs ``names``, as it goes by: for a replacement to
+    compare (files in ``scratch``, see :meth:`GraphStore._stage`) and to keep for the next one
+    (``kept``, see :mod:`stepnc_graph.kept`). Encoded once for both."""
 
-    def __init__(self, scratch: Path, names: Sequence[str]) -> None:
-        self.paths = {name: scratch / f"new{k}.nt" for k, name in enumerate(names)}
+    def __init__(self, names: Sequence[str], scratch: Path | None = None, kept: KeptWriting | None = None) -> None:
+        self.paths = {} if scratch is None else {name: scratch / f"new{k}.nt" for k, name in enumerate(names)}
         self.lines = dict.fromkeys(names, 0)
         self._files = {name: open(path, "wb", buffering=1 << 20) for name, path in self.paths.items()}
-
-    def chunk(self, graph: str, chunk: Chunk) -> None:
-        """A chunk of the load: text of ``graph``, or of the companion it names."""
-        if type(chunk) is str:
-            self.write(graph, chunk)
-        else:
-            self.write(chunk.graph, chunk.text)  # type: ignore[union-attr]
+        self._kept = kept
 
     def write(self, graph: str, text: str) -> None:
         """N-Triples lines written into ``graph`` (none kept for a graph not in ``names``)."""
-        out = self._files.get(graph)
-        if out is None or not text:
+        if graph in self.lines and text:
+            self.write_bytes(graph, text.encode("utf-8"))
+
+    def write_bytes(self, graph: str, data: bytes) -> None:
+        """The same, encoded."""
+        if graph not in self.lines or not data:
             return
-        if text[-1] != "\n":
-            text += "\n"
-        out.write(text.encode("utf-8"))
-        self.lines[graph] += text.count("\n")
+        if data[-1] != 10:
+            data += b"\n"
+        lines = data.count(b"\n")
+        self.lines[graph] += lines
+        if (out := self._files.get(graph)) is not None:
+            out.write(data)
+        if self._kept is not None:
+            self._kept.write(graph, data, lines)
 
     def close(self) -> None:
         for out in self._files.values():
             out.close()
+
+    def keep(self) -> dict[str, KeptText]:
+        """The kept texts, once compressed (see :class:`KeptWriting`)."""
+        kept, self._kept = self._kept, None
+        return {} if kept is None else kept.finish()
+
+    def discard(self) -> None:
+        """Keep nothing: the load failed, or its text is not the new version."""
+        kept, self._kept = self._kept, None
+        if kept is not None:
+            kept.discard()
 
     def new_version(self, staged: ox.Store) -> dict[str, Path | None] | None:
         """The files, graph by graph (None: the staged store has no such graph), if each has as
