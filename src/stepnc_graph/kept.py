@@ -138,7 +138,7 @@ class KeptWriting:
     def __init__(self, directory: Path, names: Sequence[str]) -> None:
         self._paths = {name: directory / f"{uuid.uuid4().hex}.nt.z" for name in names}
         self._lines = dict.fromkeys(names, 0)
-        self._work: queue.Queue[tuple[str, bytes] | None] = queue.Queue(maxsize=8)
+        self._work: queue.Queue[tuple[str, bytes] | None] = queue.Queue(maxsize=2)  # it keeps up
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()

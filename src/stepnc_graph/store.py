@@ -10,6 +10,8 @@ Layout of a store directory (format 2)::
     DIR/work/                     the writer's read-write database
     DIR/work.dirty                present while work/ may differ from the published generation
     DIR/deleted-quads             quads deleted since work/ was last compacted (see COMPACT_AT)
+    DIR/kept/                     each graph's last loaded text, compressed, and its index
+                                  (stepnc_graph.kept): a replacement's old version
     DIR/rebuild/, DIR/difference/ a write's scratch (a database being rebuilt, a replacement's texts)
 
 **One writer, many readers.** RocksDB lets one process open a database for
@@ -49,9 +51,10 @@ loads when it compacts. A replacement there writes only what changed
 (:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
 one costs 0.8-1.25 loads, where deleting the old version and loading the new one cost
 2.1-2.5 (100k instances beside three such programs, measured); a program of 1M instances
-is staged on disk, and costs 1.5-1.65 loads there (see docs/loading.md). The new version is
-compared as the load wrote it (:class:`Shadow`, :class:`_Tee`); only the old one is dumped
-from the store. The deletes' write-ahead log is dropped at once
+is staged on disk (see docs/loading.md for its figures). The new version is compared as the
+load wrote it (:class:`Shadow`, :class:`_Tee`), the old one as its load wrote it too
+(:mod:`stepnc_graph.kept`), but for the lines with a blank node, read from the store: neither
+is dumped. The deletes' write-ahead log is dropped at once
 (:meth:`GraphStore._drop_write_ahead_log`); the strings that only removed quads used
 stay until :meth:`GraphStore.compact` rebuilds the database.
 
@@ -83,7 +86,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, BinaryIO, Protocol
 
 import pyoxigraph as ox
 
@@ -757,7 +760,7 @@ class GraphStore:
         kept = self._usable_kept()
         self._touch([graph, *companions, VOCABULARY_GRAPH])
         try:
-            how, present, removed, held = self._removal([graph, *companions])
+            how, present, removed, held = self._removal([graph, *companions], kept)
             if how == "delete":
                 deleted = self._replace_by_difference(graph, chunks, before_commit, companions, kept,
                                                       in_memory=removed <= STAGE_IN_MEMORY_QUADS)
@@ -784,9 +787,10 @@ class GraphStore:
             return True
         self._begin()
         self.compacted = False
+        kept = self._usable_kept()
         self._touch([graph, *companions])
         try:
-            how, present, removed, held = self._removal([graph, *companions])
+            how, present, removed, held = self._removal([graph, *companions], kept)
             self._remove(how, present)
             if how == "delete":
                 self._settle(removed, held - removed, compact)
@@ -828,17 +832,34 @@ class GraphStore:
             tee.close()
         self._kept_written.update(tee.keep())
 
+    def _quads_about(self, graphs: Sequence[str] | None, kept: dict[str, KeptText]) -> int:
+        """About the quads of ``graphs`` (None: of the database), for choosing how to remove and
+        when to compact: a graph's kept text gives its count (unless the text repeated a line),
+        the others are counted (Oxigraph counts by scanning: 5.9 s for 40.8M quads, 2 s for a
+        program graph of 8M)."""
+        if graphs is not None:
+            return sum(kept[g].lines if g in kept else self.count(g) for g in graphs)
+        counted = self._count_default() + sum(self.count(g) for g in self.all_graphs() if g not in kept)
+        return counted + sum(k.lines for g, k in kept.items() if self.has_graph(g))
+
+    def _count_default(self) -> int:
+        rows = self._db.query("SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }")
+        assert isinstance(rows, ox.QuerySolutions)
+        [row] = list(rows)
+        return int(row[0].value)
+
     def _quads_in(self, graphs: Sequence[str]) -> int:
         return sum(self.count(g) for g in graphs if self.has_graph(g))
 
-    def _removal(self, graphs: Sequence[str]) -> tuple[str | None, list[str], int, int]:
+    def _removal(self, graphs: Sequence[str],
+                 kept: dict[str, KeptText]) -> tuple[str | None, list[str], int, int]:
         """How removing ``graphs`` costs less (see the module docstring): "rebuild", "delete",
         or None when none of them is there; with the ones present, their quads and the
-        database's."""
+        database's (about: see :meth:`_quads_about`)."""
         present = [g for g in graphs if self.has_graph(g)]
         if not present:
             return None, [], 0, 0
-        removed, held = self._quads_in(present), len(self._db)
+        removed, held = self._quads_about(present, kept), self._quads_about(None, kept)
         how = "rebuild" if (held - removed) * REBUILD_COST < removed * DELETE_COST else "delete"
         return how, present, removed, held
 
@@ -865,7 +886,9 @@ class GraphStore:
         Here the new version is loaded and completed (``before_commit``) in a store of its own
         (in memory, or on disk in the scratch directory when ``in_memory`` is false, see
         :data:`STAGE_IN_MEMORY_QUADS`), then each graph is compared with the one on disk as
-        N-Triples lines, and only the lines that changed are deleted and inserted. Blank nodes
+        N-Triples lines (the old version from the text its load kept, ``kept``, see
+        :meth:`_old_from_kept`; else dumped), and only the lines that changed are deleted and
+        inserted. Blank nodes
         (list cells, typed values), which no two loads name alike, are first matched between the
         versions by their place under the instance that owns them (:class:`_BlankMatch`), so an
         unchanged list compares equal and keeps its nodes. A re-load of the same file then
@@ -1004,6 +1027,7 @@ class GraphStore:
         of its two graphs take about 120 s of CPU). False, and nothing to use, when the file is
         damaged or the line counts differ from the database's."""
         db, node = self._disk, ox.NamedNode(name)
+        blank = path.with_name(path.stem + "-blank.nt")
         try:
             with open(path, "wb", buffering=1 << 20) as out:
                 found = read_without_blank_nodes(self._kept.path(kept), out)
@@ -1015,12 +1039,16 @@ class GraphStore:
                     triples = db.query(f"CONSTRUCT {{ ?s {p} ?o }} WHERE {{ GRAPH {node} {{ ?s {p} ?o "
                                        f"FILTER(isBlank(?s) || isBlank(?o)) }} }}")
                     assert isinstance(triples, ox.QueryTriples)
-                    text = triples.serialize(format=ox.RdfFormat.N_TRIPLES) or b""
-                    read += text.count(b"\n")
-                    out.write(text)
-                    del triples, text  # a query's result holds the database open
+                    # Into a file by Oxigraph itself: as bytes the text of one predicate was
+                    # held twice (150 MB at 1M instances); into a Python writer, every write
+                    # waits for the interpreter (94 s instead of 2 beside a busy thread).
+                    triples.serialize(str(blank), ox.RdfFormat.N_TRIPLES)
+                    del triples  # a query's result holds the database open
+                    read += _append(blank, out)
         except (OSError, EOFError, zlib.error, UnicodeDecodeError, SyntaxError):
             return False
+        finally:
+            blank.unlink(missing_ok=True)
         return read == found.blank and found.lines + read == self._count_in(db, name)
 
     @staticmethod
@@ -1701,6 +1729,16 @@ def _extend_in_calls(db: ox.Store, quads: Iterator[ox.Quad], batch: int | None =
             yield added
         if added < batch:
             return
+
+
+def _append(source: Path, out: BinaryIO) -> int:
+    """Copy the file ``source`` to ``out``; how many lines it had."""
+    lines = 0
+    with open(source, "rb") as fh:
+        while data := fh.read(1 << 20):
+            out.write(data)
+            lines += data.count(b"\n")
+    return lines
 
 
 def _lines(path: Path | None) -> Iterator[bytes]:
