@@ -173,6 +173,21 @@ def test_the_kept_line_counts_stand_for_counting_the_store(tmp_path: Path) -> No
         assert s._quads_about([G, D], kept) == s.count(G) + s.count(D)
 
 
+def test_a_killed_writer_s_texts_are_collected_by_the_next_writer(tmp_path: Path) -> None:
+    """A writer killed during a load leaves the text it was keeping; the index never named it."""
+    store_dir = tmp_path / "s"
+    with sg.open_store(store_dir) as s:
+        sg.load(s, [EXAMPLE])
+    stray = store_dir / "kept" / "0123456789abcdef.nt.z"
+    stray.write_bytes(b"half a text")
+    with sg.open_store(store_dir, readonly=True):
+        assert stray.exists()  # readers change nothing
+    with sg.open_store(store_dir):
+        assert not stray.exists()
+        assert {p.name for p in (store_dir / "kept").iterdir()} == {
+            e["file"] for e in index(store_dir)["graphs"].values()} | {"index.json"}
+
+
 def test_a_failed_load_keeps_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     store_dir = tmp_path / "s"
     with sg.open_store(store_dir) as s:

@@ -49,8 +49,9 @@ compaction reach a third of the store (:data:`COMPACT_AT`; ``unload --compact`` 
 Beside three programs of its size an unload then costs about one load (its deletes), and 1.5
 loads when it compacts. A replacement there writes only what changed
 (:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
-one costs 0.8-1.25 loads, where deleting the old version and loading the new one cost
-2.1-2.5 (100k instances beside three such programs, measured); a program of 1M instances
+one costs 0.7-1.5 loads, where deleting the old version and loading the new one cost
+2.1-2.5 (100k instances beside three such programs, measured; the ratios move with the load
+they are measured against); a program of 1M instances
 is staged on disk (see docs/loading.md for its figures). The new version is compared as the
 load wrote it (:class:`Shadow`, :class:`_Tee`), the old one as its load wrote it too
 (:mod:`stepnc_graph.kept`), but for the lines with a blank node, read from the store: neither
