@@ -42,8 +42,10 @@ INDEX = "index.json"
 LEVEL = 1
 #: bytes of decompressed text handled at a time when the kept text is read back
 BLOCK = 16 << 20
-#: an N-Triples line's end when its object is a blank node (no label holds a space or a quote)
-_BLANK_TAIL = re.compile(rb'_:[^ "\n]+ \.\n')
+#: an N-Triples line whose object is a blank node, from the space before it (Oxigraph and the
+#: mapper write " .\n" at the end of a line; no label holds a quote, which keeps a literal ending
+#: in " _:x" out). The store's test of a line uses it too.
+BLANK_OBJECT = re.compile(rb" _:([^ \"\n]+) \.\n$")
 
 
 @dataclass(frozen=True)
@@ -137,16 +139,14 @@ class KeptWriting:
 
     def __init__(self, directory: Path, names: Sequence[str]) -> None:
         self._paths = {name: directory / f"{uuid.uuid4().hex}.nt.z" for name in names}
-        self._lines = dict.fromkeys(names, 0)
         self._work: queue.Queue[tuple[str, bytes] | None] = queue.Queue(maxsize=2)  # it keeps up
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
-    def write(self, graph: str, data: bytes, lines: int) -> None:
-        """``lines`` N-Triples lines of ``graph`` (ignored for a graph not kept)."""
-        if graph in self._lines and data:
-            self._lines[graph] += lines
+    def write(self, graph: str, data: bytes) -> None:
+        """N-Triples lines of ``graph`` (ignored for a graph not kept)."""
+        if graph in self._paths and data:
             self._work.put((graph, data))
 
     def _run(self) -> None:
@@ -168,14 +168,15 @@ class KeptWriting:
             for out, _ in files.values():
                 out.close()
 
-    def finish(self) -> dict[str, KeptText]:
-        """Wait for the compression; the kept texts of the graphs that got lines; none when it
-        failed (a full disk, say): keeping is worth a faster replacement, never a failed load."""
+    def finish(self, lines: dict[str, int]) -> dict[str, KeptText]:
+        """Wait for the compression; the kept texts of the graphs that got lines (``lines``: how
+        many each, as the caller counted them); none when it failed (a full disk, say): keeping
+        is worth a faster replacement, never a failed load."""
         self._stop()
         if self._error is not None:
             self.discard()
             return {}
-        return {name: KeptText(path.name, self._lines[name], path.stat().st_size)
+        return {name: KeptText(path.name, lines[name], path.stat().st_size)
                 for name, path in self._paths.items() if path.exists()}
 
     def discard(self) -> None:
@@ -206,7 +207,7 @@ def read_without_blank_nodes(path: Path, out: BinaryIO) -> OldLines:
         while (i := find(b"_:", pos)) >= 0:
             start = block.rfind(b"\n", 0, i) + 1
             end = find(b"\n", i) + 1
-            if start == i or (block[i - 1] == 32 and _BLANK_TAIL.fullmatch(block, i, end)):
+            if start == i or BLANK_OBJECT.fullmatch(block, i - 1, end):
                 out.write(block[run:start])
                 run = end
                 found.blank += 1

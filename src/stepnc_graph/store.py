@@ -75,7 +75,6 @@ import itertools
 import json
 import os
 import queue
-import re
 import shutil
 import sys
 import threading
@@ -91,7 +90,7 @@ from typing import Any, BinaryIO, Protocol
 
 import pyoxigraph as ox
 
-from stepnc_graph.kept import KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
+from stepnc_graph.kept import BLANK_OBJECT, KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
 from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
 
 STORE_ENV = "STEPNC_GRAPH_STORE"
@@ -172,9 +171,6 @@ INSERT_BATCH = 250_000
 TRANSACTION_QUADS = 25_000
 #: quads per DELETE DATA request of a replacement by difference
 DELETE_LINES = 20_000
-#: an N-Triples line whose object is a blank node (Oxigraph writes " .\n" at the end of a line;
-#: no label holds a quote, which keeps a literal ending in " _:x" out)
-_BLANK_OBJECT = re.compile(rb" _:([^ \"]+) \.\n$")
 _LOCK_POLL = 0.2
 
 
@@ -840,14 +836,8 @@ class GraphStore:
         program graph of 8M)."""
         if graphs is not None:
             return sum(kept[g].lines if g in kept else self.count(g) for g in graphs)
-        counted = self._count_default() + sum(self.count(g) for g in self.all_graphs() if g not in kept)
+        counted = self._count_in(self._db, None) + sum(self.count(g) for g in self.all_graphs() if g not in kept)
         return counted + sum(k.lines for g, k in kept.items() if self.has_graph(g))
-
-    def _count_default(self) -> int:
-        rows = self._db.query("SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }")
-        assert isinstance(rows, ox.QuerySolutions)
-        [row] = list(rows)
-        return int(row[0].value)
 
     def _quads_in(self, graphs: Sequence[str]) -> int:
         return sum(self.count(g) for g in graphs if self.has_graph(g))
@@ -1073,8 +1063,10 @@ class GraphStore:
         return path
 
     @staticmethod
-    def _count_in(store: ox.Store, graph: str) -> int:
-        rows = store.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}")
+    def _count_in(store: ox.Store, graph: str | None) -> int:
+        """Quads in ``graph`` of ``store`` (None: its default graph)."""
+        pattern = "?s ?p ?o" if graph is None else f"GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }}"
+        rows = store.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ {pattern} }}")
         assert isinstance(rows, ox.QuerySolutions)
         [row] = list(rows)
         return int(row[0].value)
@@ -1569,12 +1561,11 @@ class _Tee:
             return
         if data[-1] != 10:
             data += b"\n"
-        lines = data.count(b"\n")
-        self.lines[graph] += lines
+        self.lines[graph] += data.count(b"\n")
         if (out := self._files.get(graph)) is not None:
             out.write(data)
         if self._kept is not None:
-            self._kept.write(graph, data, lines)
+            self._kept.write(graph, data)
 
     def close(self) -> None:
         for out in self._files.values():
@@ -1583,7 +1574,7 @@ class _Tee:
     def keep(self) -> dict[str, KeptText]:
         """The kept texts, once compressed (see :class:`KeptWriting`)."""
         kept, self._kept = self._kept, None
-        return {} if kept is None else kept.finish()
+        return {} if kept is None else kept.finish(self.lines)
 
     def discard(self) -> None:
         """Keep nothing: the load failed, or its text is not the new version."""
@@ -1633,7 +1624,7 @@ class _BlankMatch:
         parent: dict[bytes, tuple[bytes, bytes]] = {}  # label -> (the blank node above, property)
         props: dict[bytes, bytes] = {}  # one bytes object per property
         for line in _lines(path):
-            if b"_:" not in line or (m := _BLANK_OBJECT.search(line)) is None:
+            if b"_:" not in line or (m := BLANK_OBJECT.search(line)) is None:
                 continue
             label = m.group(1)
             subject, prop, _ = line.split(b" ", 2)
@@ -1671,7 +1662,7 @@ class _BlankMatch:
         if line[:2] == b"_:":
             end = line.index(b" ")
             line = b"_:" + self._label(line[2:end]) + line[end:]
-        if (m := _BLANK_OBJECT.search(line)) is not None:
+        if (m := BLANK_OBJECT.search(line)) is not None:
             line = line[:m.start(1)] + self._label(m.group(1)) + b" .\n"
         return line
 
@@ -1834,7 +1825,7 @@ def _line_set(path: Path | None) -> set[bytes]:
 
 def _has_blank(line: bytes) -> bool:
     """Whether an N-Triples line (as Oxigraph writes it) has a blank node as subject or object."""
-    return b"_:" in line and (line.startswith(b"_:") or _BLANK_OBJECT.search(line) is not None)
+    return b"_:" in line and (line.startswith(b"_:") or BLANK_OBJECT.search(line) is not None)
 
 
 def _digest(line: bytes) -> bytes:
