@@ -7,16 +7,21 @@ remote one must answer the same.
 
 from __future__ import annotations
 
+import base64
 import http.server
 import json
 import os
+import shutil
 import signal
+import ssl
 import subprocess
 import sys
 import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -158,3 +163,184 @@ def test_remote_store_is_a_store(server: OxigraphServer) -> None:
         [r] = sg.load(store, [EXAMPLE])
         assert store.graphs() == [r.graph] and store.count(r.graph) == r.triples
         assert sg.unload(store, r.graph) and not store.has_graph(r.graph)
+
+
+# -- answers that are not what was asked for, hanging endpoints, TLS, credentials, parameters ------
+
+
+class _Fake(http.server.BaseHTTPRequestHandler):
+    """An endpoint whose answers a test chooses: ``answer(query_text) -> (status, content type, body)``,
+    or None to keep silent (until the test ends)."""
+
+    answer: Any = None
+    seen: list[tuple[str, str, dict[str, str]]] = []
+
+    def do_POST(self) -> None:  # noqa: N802 -- the http.server API
+        from urllib.parse import parse_qs
+
+        body = self.rfile.read(int(self.headers.get("Content-Length", 0))).decode()
+        text = parse_qs(body).get("query", [body])[0] if "form" in self.headers.get("Content-Type", "") else body
+        self.seen.append((self.path, text, dict(self.headers)))
+        reply = type(self).answer(self.path, text, dict(self.headers))
+        if reply is None:
+            time.sleep(30)
+            return
+        status, media_type, data = reply
+        self.send_response(status)
+        self.send_header("Content-Type", media_type)
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        self.wfile.write(data)
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+
+@contextmanager
+def fake_endpoint(answer: Any) -> Iterator[tuple[str, list[tuple[str, str, dict[str, str]]]]]:
+    handler = type("Handler", (_Fake,), {"answer": staticmethod(answer), "seen": []})
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    httpd.daemon_threads = True
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        yield f"http://127.0.0.1:{httpd.server_address[1]}", handler.seen
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+
+
+ASK_TRUE = (200, "application/sparql-results+json", b'{"head": {}, "boolean": true}')
+NO_GRAPHS = (200, "application/sparql-results+json", b'{"head": {"vars": ["g"]}, "results": {"bindings": []}}')
+
+
+def empty_store(path: str, text: str, headers: dict[str, str]) -> Any:
+    """An empty store's answers to `info`."""
+    return ASK_TRUE if text.startswith("ASK") else NO_GRAPHS
+
+
+def test_an_unexpected_answer_is_a_clear_error(tmp_path: Path) -> None:
+    html = (200, "text/html; charset=utf-8", b"<!DOCTYPE html><html><body><form>Sign in</form></body></html>")
+    cut = (200, "application/sparql-results+json", b'{"head": {"vars": ["g"]}, "results": {"bindings": [{"g": {"ty')
+    boolean = ASK_TRUE
+    others = (200, "application/sparql-results+json",
+              b'{"head": {"vars": ["x"]}, "results": {"bindings": [{"x": {"type": "uri", "value": "urn:x"}}]}}')
+    cases = [(html, "an HTML page"), (cut, "does not parse"), (boolean, "a boolean where SPARQL results with ?g"),
+             (others, "the variables ?x where SPARQL results with ?g")]
+    for reply, expected in cases:
+        with fake_endpoint(lambda path, text, headers, reply=reply: ASK_TRUE if text.startswith("ASK") else reply) \
+                as (url, _):
+            res = cli("info", "--endpoint", url, env={"STEPNC_GRAPH_RETRIES": "0"})
+        assert res.returncode == 2 and expected in res.stderr and url.split("//")[1] in res.stderr, res.stderr
+        assert "Traceback" not in res.stderr
+    # an ASK answered with rows, and a CONSTRUCT answered with results
+    with fake_endpoint(lambda path, text, headers: others if "ASK" in text else ASK_TRUE) as (url, _):
+        res = cli("info", "--endpoint", url, env={"STEPNC_GRAPH_RETRIES": "0"})
+    assert res.returncode == 2 and "rows where a boolean" in res.stderr and "Traceback" not in res.stderr, res.stderr
+
+
+def test_a_hanging_endpoint_is_given_up_after_the_timeout() -> None:
+    with fake_endpoint(lambda path, text, headers: None) as (url, seen):
+        for args, env in ((["--timeout", "1"], {}), ([], {"STEPNC_GRAPH_TIMEOUT": "1"})):
+            started = time.monotonic()
+            res = cli("info", "--endpoint", url, *args, env=env)
+            assert res.returncode == 2 and "did not answer within 1 s" in res.stderr, res.stderr
+            assert time.monotonic() - started < 20 and "Traceback" not in res.stderr
+        assert len(seen) == 2  # a read timeout is not retried (the default would try 6 times)
+    bad = cli("info", "--endpoint", "http://127.0.0.1:9", env={"STEPNC_GRAPH_TIMEOUT": "soon"})
+    assert bad.returncode == 2 and "STEPNC_GRAPH_TIMEOUT='soon'" in bad.stderr
+
+
+def test_an_update_that_timed_out_is_not_sent_again() -> None:
+    def answer(path: str, text: str, headers: dict[str, str]) -> Any:
+        return None if path == "/update" else ASK_TRUE
+
+    with fake_endpoint(answer) as (url, seen):
+        with open_remote(url, timeout=1) as store:
+            with pytest.raises(StoreError, match="did not answer within 1 s.*may have been carried out"):
+                store.update("DROP SILENT GRAPH <urn:x>")
+        assert [p for p, _, _ in seen].count("/update") == 1
+
+
+def test_credentials_never_appear_in_a_message(monkeypatch: pytest.MonkeyPatch) -> None:
+    def echo(path: str, text: str, headers: dict[str, str]) -> Any:  # a proxy's error page showing the request
+        if text.startswith("ASK"):
+            return ASK_TRUE
+        return 400, "text/plain", "\n".join(f"{k}: {v}" for k, v in headers.items()).encode()
+
+    with fake_endpoint(echo) as (url, _):
+        monkeypatch.setenv("STEPNC_GRAPH_ENDPOINT_TOKEN", "s3cret-t0ken")
+        res = cli("info", "--endpoint", url)
+        assert res.returncode == 2 and "answered 400" in res.stderr and "s3cret-t0ken" not in res.stderr, res.stderr
+        monkeypatch.delenv("STEPNC_GRAPH_ENDPOINT_TOKEN")
+        monkeypatch.setenv("STEPNC_GRAPH_ENDPOINT_USER", "alice")
+        monkeypatch.setenv("STEPNC_GRAPH_ENDPOINT_PASSWORD", "pa55word")
+        res = cli("info", "--endpoint", url)
+        basic = base64.b64encode(b"alice:pa55word").decode()
+        assert res.returncode == 2 and "Authorization" in res.stderr, res.stderr
+        assert basic not in res.stderr and "pa55word" not in res.stderr
+
+
+def test_the_ca_bundle_of_stepnc_graph_wins_over_requests_own(tmp_path: Path) -> None:
+    if shutil.which("openssl") is None:
+        pytest.skip("no openssl to make a certificate")
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    made = subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out",
+                           str(cert), "-days", "1", "-subj", "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1"],
+                          capture_output=True)
+    if made.returncode != 0:
+        pytest.skip(f"openssl cannot make a certificate: {made.stderr[-200:]!r}")
+    other = tmp_path / "other.pem"  # a valid bundle that does not hold this server's certificate
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(tmp_path / "k2"),
+                    "-out", str(other), "-days", "1", "-subj", "/CN=other"], capture_output=True, check=True)
+    handler = type("Handler", (_Fake,), {"answer": staticmethod(empty_store), "seen": []})
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.load_cert_chain(cert, key)
+    httpd.socket = context.wrap_socket(httpd.socket, server_side=True)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    url = f"https://127.0.0.1:{httpd.server_address[1]}"
+    corporate = {"REQUESTS_CA_BUNDLE": str(other), "CURL_CA_BUNDLE": str(other), "STEPNC_GRAPH_RETRIES": "0"}
+    try:
+        for env in ({**corporate, "STEPNC_GRAPH_CA_BUNDLE": str(cert)}, {"STEPNC_GRAPH_CA_BUNDLE": str(cert)},
+                    {"REQUESTS_CA_BUNDLE": str(cert)}):
+            res = cli("info", "--endpoint", url, env=env)
+            assert res.returncode == 0, (env, res.stderr)
+        res = cli("info", "--endpoint", url, env=corporate)  # the certificate is checked
+        assert res.returncode == 2 and "TLS failed" in res.stderr and "Traceback" not in res.stderr, res.stderr
+        res = cli("info", "--endpoint", url, env={"STEPNC_GRAPH_CA_BUNDLE": str(tmp_path / "missing.pem")})
+        assert res.returncode == 2 and "does not exist" in res.stderr
+    finally:
+        httpd.shutdown()
+
+
+BY_ID = """# title: Workingstep by id
+# description: the workingsteps with an id, as a FILTER reads it (and one in a UNION branch)
+# param: ws_id (string) = WS5 RELIEF GROOVE -- the workingstep's its_id
+PREFIX attr: <https://w3id.org/stepnc-graph/attribute#>
+SELECT ?ws ?ws_id ?how WHERE {
+  { ?ws attr:its_operation ?op ; attr:its_id ?id FILTER(?id = ?ws_id) BIND("equal" AS ?how) }
+  UNION
+  { ?ws attr:its_operation ?op ; attr:its_id ?id FILTER(STRSTARTS(?id, SUBSTR(?ws_id, 1, 3))) BIND("prefix" AS ?how) }
+}
+ORDER BY ?ws ?how
+"""
+
+
+def test_parameters_give_the_same_rows_embedded_and_remote(server: OxigraphServer, tmp_path: Path) -> None:
+    local = str(tmp_path / "local")
+    assert cli("load", "--endpoint", server.url, str(EXAMPLE)).returncode == 0
+    assert cli("load", "--store", local, str(EXAMPLE)).returncode == 0
+    rq = tmp_path / "by-id.rq"
+    rq.write_text(BY_ID, encoding="utf-8")
+    runs = [
+        [str(rq)],
+        [str(rq), "--param", "ws_id=WS1 FACE RIGHT ROUGH"],
+        ["workingsteps-by-tool-type", "--param", "tool_type=grooving_tool"],
+        ["-e", "SELECT ?ws ?n WHERE { ?ws attr:its_id ?id FILTER(?id = ?n) }", "--param", "n=WS3 OD50 ROUGH"],
+    ]
+    for args in runs:
+        embedded = cli("query", *args, "--store", local, "--format", "csv")
+        remote = cli("query", *args, "--endpoint", server.url, "--format", "csv")
+        assert embedded.returncode == 0 and remote.returncode == 0, (args, embedded.stderr, remote.stderr)
+        assert embedded.stdout.count("\n") > 1, (args, embedded.stdout)  # rows, not just the header
+        assert sorted(remote.stdout.splitlines()) == sorted(embedded.stdout.splitlines()), args

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -30,7 +32,7 @@ JSON = {"Accept": "application/sparql-results+json"}
 class Serving:
     """A `stepnc-graph serve` child process on a free loopback port, stopped by its pid."""
 
-    def __init__(self, store: Path, *options: str) -> None:
+    def __init__(self, store: Path, *options: str, address: str = "127.0.0.1") -> None:
         try:
             from stepnc_graph.serve import oxigraph_binary
 
@@ -38,7 +40,7 @@ class Serving:
         except Exception as e:  # noqa: BLE001 -- the reason is the skip message
             pytest.skip(f"serve cannot run here: {e}")
         self.port = free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
+        self.url = f"http://{f'[{address}]' if ':' in address else address}:{self.port}"
         self.process = subprocess.Popen([*CLI, "serve", "--store", str(store), "--port", str(self.port), *options],
                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         for _ in range(300):
@@ -172,3 +174,159 @@ def test_a_non_loopback_host_must_be_asked_for_and_warns(store: Path) -> None:
     server = Serving(store, "--host", "0.0.0.0")
     code, stderr = server.stop()
     assert "warning: listening on 0.0.0.0" in stderr
+
+
+def raw(port: int, request: bytes, address: str = "127.0.0.1", wait: float = 15) -> bytes:
+    """Send ``request`` as it is over a socket; what came back before the server closed or ``wait`` passed."""
+    with socket.create_connection((address, port), timeout=wait) as conn:
+        conn.sendall(request)
+        chunks = []
+        try:
+            while chunk := conn.recv(65536):
+                chunks.append(chunk)
+                if b"\r\n\r\n" in b"".join(chunks) and b"Connection: close" not in b"".join(chunks):
+                    break
+        except TimeoutError:
+            pass
+    return b"".join(chunks)
+
+
+def test_a_request_naming_another_host_or_from_another_site_is_refused(serving: Serving) -> None:
+    query = {"query": "ASK { ?s ?p ?o }"}
+    for host in (f"localhost:{serving.port}", f"127.0.0.1:{serving.port}", "127.0.0.1", "LOCALHOST."):
+        assert requests.get(f"{serving.url}/query", params=query, headers={"Host": host}).status_code == 200, host
+    for host in ("attacker.example", f"attacker.example:{serving.port}", "localhost.attacker.example"):
+        rebound = requests.get(f"{serving.url}/query", params=query, headers={"Host": host})  # DNS rebinding
+        assert rebound.status_code == 421 and "--allow-host" in rebound.text, (host, rebound.text)
+    for headers in ({"Origin": "https://attacker.example"}, {"Origin": "null"}, {"Sec-Fetch-Site": "cross-site"}):
+        assert requests.get(f"{serving.url}/query", params=query, headers=headers).status_code == 403, headers
+    same = requests.get(f"{serving.url}/query", params=query, headers={"Origin": serving.url})
+    assert same.status_code == 200
+    no_host = raw(serving.port, b"GET /query?query=ASK%7B%7D HTTP/1.1\r\nConnection: close\r\n\r\n")
+    assert no_host.startswith(b"HTTP/1.1 400") and b"Host header" in no_host
+
+
+def test_allow_host_adds_a_name(store: Path) -> None:
+    server = Serving(store, "--allow-host", "sparql.example.org")
+    try:
+        response = requests.get(f"{server.url}/query", params={"query": "ASK {}"},
+                                headers={"Host": "sparql.example.org"})
+        assert response.status_code == 200
+    finally:
+        server.stop()
+
+
+def test_request_bodies_are_bounded_and_their_length_checked(serving: Serving) -> None:
+    started = time.monotonic()
+    huge = raw(serving.port, b"POST /query HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/sparql-query"
+                             b"\r\nContent-Length: 400000000\r\n\r\nASK {")
+    assert huge.startswith(b"HTTP/1.1 413") and b"--max-request-bytes" in huge, huge
+    assert time.monotonic() - started < 10  # answered at once, not after reading 400 MB
+    for length in (b"-5", b"abc", b"1e3", b"5, 6"):
+        answer = raw(serving.port, b"POST /query HTTP/1.1\r\nHost: localhost\r\nContent-Type: "
+                                   b"application/sparql-query\r\nContent-Length: " + length + b"\r\n\r\nASK {}")
+        assert answer.startswith(b"HTTP/1.1 400") and b"Content-Length" in answer, (length, answer)
+    chunked = raw(serving.port, b"POST /query HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/sparql-query"
+                                b"\r\nTransfer-Encoding: chunked\r\n\r\n6\r\nASK {}\r\n0\r\n\r\n")
+    assert chunked.startswith(b"HTTP/1.1 411"), chunked
+    assert serving.query("ASK {}").status_code == 200  # still serving
+    code, stderr = serving.stop()
+    assert "Traceback" not in stderr, stderr
+
+
+def test_max_request_bytes_sets_the_limit(store: Path) -> None:
+    server = Serving(store, "--max-request-bytes", "1000")
+    try:
+        assert server.query("ASK {}" + " " * 900).status_code == 200
+        over = server.query("ASK {}" + " " * 2000)
+        assert over.status_code == 413 and "larger than 1000 bytes" in over.text
+    finally:
+        server.stop()
+
+
+def test_ipv6_loopback(store: Path) -> None:
+    if not socket.has_ipv6:
+        pytest.skip("no IPv6 here")
+    try:
+        with socket.socket(socket.AF_INET6) as probe:
+            probe.bind(("::1", 0))
+    except OSError:
+        pytest.skip("no IPv6 loopback here")
+    server = Serving(store, "--host", "::1", address="::1")
+    try:
+        response = requests.get(f"{server.url}/query", params={"query": "ASK {}"})
+        assert response.status_code == 200
+    finally:
+        code, stderr = server.stop()
+    assert code == 0 and "warning: listening" not in stderr and "Traceback" not in stderr, stderr
+
+
+def test_a_client_that_goes_away_is_no_traceback(serving: Serving) -> None:
+    body = b"query=SELECT%20*%20WHERE%20%7B%20GRAPH%20%3Fg%20%7B%20%3Fs%20%3Fp%20%3Fo%20%7D%20%7D"
+    for _ in range(5):
+        with socket.create_connection(("127.0.0.1", serving.port)) as conn:
+            conn.sendall(b"POST /query HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/x-www-form-urlencoded"
+                         b"\r\nContent-Length: " + str(len(body)).encode() + b"\r\n\r\n" + body)
+            conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")  # reset
+    time.sleep(1.5)
+    assert serving.count() > 0
+    code, stderr = serving.stop()
+    assert "Traceback" not in stderr and "BrokenPipe" not in stderr and "ConnectionReset" not in stderr, stderr
+
+
+class _Federated(threading.Thread):
+    """A loopback SPARQL endpoint for SERVICE calls: answers with ``reply``, or never (``reply`` None)."""
+
+    def __init__(self, reply: bytes | None) -> None:
+        super().__init__(daemon=True)
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(8)
+        self.url = f"http://127.0.0.1:{self.sock.getsockname()[1]}/sparql"
+        self.reply = reply
+        self.held: list[socket.socket] = []
+        self.start()
+
+    def run(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            conn.recv(65536)
+            if self.reply is None:
+                self.held.append(conn)  # never answers
+            else:
+                conn.sendall(self.reply)
+                conn.close()
+
+
+def test_an_error_while_the_result_is_written_is_no_200(store: Path) -> None:
+    body = b'{"head": {"vars": ["s"]}, "results": {"bindings": [{"s": {"type": "uri", "value": "urn:a"}}'  # cut short
+    broken = _Federated(b"HTTP/1.1 200 OK\r\nContent-Type: application/sparql-results+json\r\nContent-Length: "
+                        + str(len(body)).encode() + b"\r\n\r\n" + body)
+    server = Serving(store, "--allow-service")
+    try:
+        for accept in ("application/sparql-results+json", "text/csv", "text/tab-separated-values"):
+            response = requests.post(f"{server.url}/query", data={"query": "SELECT * WHERE { ?x ?y ?z } LIMIT 1 "},
+                                     headers={"Accept": accept})
+            assert response.status_code == 200
+            response = requests.post(f"{server.url}/query", headers={"Accept": accept}, data={
+                "query": f"SELECT ?s WHERE {{ VALUES ?n {{ 1 2 }} SERVICE <{broken.url}> {{ ?s ?p ?o }} }}"})
+            assert response.status_code == 500 and "failed while writing the result" in response.text, \
+                (accept, response.status_code, response.text)
+    finally:
+        code, stderr = server.stop()
+    assert "--allow-service" in stderr  # the warning
+
+
+def test_the_timeout_bounds_a_service_call(store: Path) -> None:
+    hanging = _Federated(None)
+    server = Serving(store, "--allow-service", "--timeout", "2")
+    try:
+        started = time.monotonic()
+        response = server.query(f"SELECT * WHERE {{ SERVICE <{hanging.url}> {{ ?s ?p ?o }} }}")
+        assert response.status_code == 503 and "took longer than 2 s" in response.text
+        assert time.monotonic() - started < 15
+    finally:
+        server.stop()

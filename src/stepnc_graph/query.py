@@ -48,6 +48,7 @@ from stepnc_graph.naming import (
     VOCABULARY_GRAPH,
     derived_graph_iri,
 )
+from stepnc_graph.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.resources import queries_dir
 from stepnc_graph.vocabulary import is_throwaway, vocabulary_for_queries, vocabulary_status
 
@@ -500,9 +501,21 @@ def _warnings(store: GraphStore, graph: str | None, vocabulary: bool = True) -> 
     return out
 
 
+def refuse_service(query: Query, allow: bool = False) -> None:
+    """Raise a QueryError if ``query`` would send a request to another server (a ``SERVICE``
+    clause), unless ``allow`` (see :mod:`stepnc_graph.outbound`)."""
+    try:
+        refuse_outbound(query.text, allow=allow)
+    except OutboundRefused as exc:
+        raise QueryError(str(exc), query.source) from None
+
+
 def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = None,
-            graph: str | None = None) -> QueryResult:
-    """Run ``query`` with ``params`` (command-line strings) over the store or one file's ``graph``."""
+            graph: str | None = None, *, allow_service: bool = False) -> QueryResult:
+    """Run ``query`` with ``params`` (command-line strings) over the store or one file's ``graph``.
+
+    A query with a ``SERVICE`` clause is refused (QueryError) unless ``allow_service``."""
+    refuse_service(query, allow_service)
     if query.needs_vocabulary:
         vocabulary_for_queries(store)
     substitutions = bind(store, query, params or {})
@@ -530,12 +543,16 @@ def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = 
     return QueryResult("select", variables, warnings=warnings, _json=data)
 
 
-def query(store: GraphStore, name_or_text: str, *, graph: str | None = None, **params: Any) -> QueryResult:
+def query(store: GraphStore, name_or_text: str, *, graph: str | None = None, allow_service: bool = False,
+          **params: Any) -> QueryResult:
     """Run a library query (by name), a ``.rq`` file or SPARQL text; keyword arguments are parameters.
 
         rows = query(store, "workingsteps-by-tool-type", tool_type="knurling_tool").rows
+
+    ``allow_service`` lets a ``SERVICE`` clause send its request (refused otherwise).
     """
-    return execute(store, resolve(name_or_text), {k: _text(v) for k, v in params.items()}, graph)
+    return execute(store, resolve(name_or_text), {k: _text(v) for k, v in params.items()}, graph,
+                   allow_service=allow_service)
 
 
 def _text(value: Any) -> str:

@@ -185,6 +185,7 @@ class RemoteOptions:
     query_url: str | None
     update_url: str | None
     store_url: str | None
+    timeout: float | None = None
 
     def wanted(self, store_path: Path | None, memory: bool) -> bool:
         """An endpoint was asked for (``$STEPNC_GRAPH_ENDPOINT`` counts unless --store or --memory is given)."""
@@ -200,7 +201,7 @@ class RemoteOptions:
     def open(self) -> Store:
         from stepnc_graph.remote import open_remote
 
-        return open_remote(self.endpoint, self.query_url, self.update_url, self.store_url)
+        return open_remote(self.endpoint, self.query_url, self.update_url, self.store_url, self.timeout)
 
 
 def with_endpoint(f: F) -> F:
@@ -209,8 +210,8 @@ def with_endpoint(f: F) -> F:
 
     @functools.wraps(f)
     def wrapper(*args: Any, endpoint: str | None, query_url: str | None, update_url: str | None,
-                store_url: str | None, **kwargs: Any) -> Any:
-        return f(*args, remote=RemoteOptions(endpoint, query_url, update_url, store_url), **kwargs)
+                store_url: str | None, endpoint_timeout: float | None, **kwargs: Any) -> Any:
+        return f(*args, remote=RemoteOptions(endpoint, query_url, update_url, store_url, endpoint_timeout), **kwargs)
 
     options = [
         click.option("--endpoint", default=None, metavar="URL",
@@ -222,6 +223,10 @@ def with_endpoint(f: F) -> F:
                      help="The SPARQL update endpoint, if not URL/update."),
         click.option("--store-url", default=None, metavar="URL",
                      help="The Graph Store Protocol endpoint, if not URL/store."),
+        click.option("--timeout", "endpoint_timeout", default=None, type=click.FloatRange(min=0, min_open=True),
+                     metavar="SECONDS", help="Seconds to wait for the endpoint's answer to one request (default: "
+                                             "$STEPNC_GRAPH_TIMEOUT, else 120). A write that times out is not "
+                                             "sent again."),
     ]
     for option in reversed(options):
         wrapper = option(wrapper)

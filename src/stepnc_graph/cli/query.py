@@ -89,10 +89,14 @@ def open_programs(programs: list[Path], store_path: Path | None, memory: bool, r
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True,
               help="csv, tsv and json are the SPARQL 1.1 results formats.")
 @click.option("--lenient", is_flag=True, help="Load FILE.stp arguments leniently.")
+@click.option("--allow-service", is_flag=True,
+              help="Let SERVICE clauses send their requests to the servers they name (refused otherwise). "
+                   "Prints a warning.")
 @reports_errors
 def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, memory: bool, remote: RemoteOptions,
-              graph: str | None, params: tuple[str, ...], fmt: str, lenient: bool) -> None:
-    """Run NAME (a library query), FILE.rq or -e 'SPARQL' over the store or over FILE.stp programs.
+              graph: str | None, params: tuple[str, ...], fmt: str, lenient: bool, allow_service: bool) -> None:
+    """Run NAME (a library query), FILE.rq, - (SPARQL on standard input) or -e 'SPARQL' over the store
+    or over FILE.stp programs.
 
     \b
       stepnc-graph query workingsteps-by-tool-type --param tool_type=grooving_tool
@@ -102,12 +106,13 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
     Program files after the query are loaded into a throw-away store (no
     --store then). Every library query names the program (?program, the
     file's graph IRI). Parameters are bound as RDF terms, never pasted into
-    the query text. Queries are read-only.
+    the query text. Queries are read-only, and a SERVICE clause (a request
+    to another server) is refused unless --allow-service is given.
 
     Exit codes: 0 ok; 2 a syntax error, bad parameter, unknown query or graph
     (with file, line and column where they apply).
     """
-    from stepnc_graph.query import QueryError, execute, resolve
+    from stepnc_graph.query import Query, QueryError, execute, parse_header, refuse_service, resolve
 
     if text is None and not args:
         _fail("give a query: NAME, FILE.rq or -e 'SPARQL' (`stepnc-graph queries` lists the library)")
@@ -117,12 +122,20 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
         if not p.is_file():
             _fail(f"{p}: no such program file")
     try:
-        query = resolve(spec)
+        if spec == "-" and text is None:
+            stdin = sys.stdin.read()
+            query = Query("-", stdin, "<stdin>", **parse_header(stdin, "<stdin>"))
+        else:
+            query = resolve(spec)
+        refuse_service(query, allow_service)
     except QueryError as exc:
         _fail(str(exc))
+    if allow_service:
+        err.print("[yellow]warning:[/] --allow-service: SERVICE clauses send requests to the servers they name",
+                  markup=True, highlight=False)
     with open_programs(programs, store_path, memory, remote, lenient) as store:
         try:
-            result = execute(store, query, _params(params), graph)
+            result = execute(store, query, _params(params), graph, allow_service=allow_service)
         except QueryError as exc:
             _fail(str(exc))
     for warning in result.warnings:

@@ -21,15 +21,27 @@ from stepnc_graph.cli.common import err, escape, out, reports_errors, store_opti
 @click.option("--timeout", default=60, show_default=True, type=click.IntRange(1), help="Query timeout, seconds.")
 @click.option("--max-bytes", default=100 << 20, show_default=True, type=click.IntRange(1),
               help="Refuse (507) a result larger than this.")
+@click.option("--max-request-bytes", default=16 << 20, show_default=True, type=click.IntRange(1),
+              help="Refuse (413) a request whose body is larger than this.")
 @click.option("--union-default-graph", is_flag=True,
               help="Queries without GRAPH see every graph (Oxigraph's option); otherwise use GRAPH ?g { ... }.")
+@click.option("--allow-service", is_flag=True,
+              help="Run SERVICE clauses (and LOAD in updates): the server then sends requests to any URL a "
+                   "client names. Refused (403) otherwise. Prints a warning.")
+@click.option("--allow-host", "allow_hosts", multiple=True, metavar="NAME",
+              help="A host name clients may use besides localhost and IP addresses, e.g. a reverse proxy's "
+                   "(repeatable). Other names are refused (421) against DNS rebinding.")
 @reports_errors
 def serve_cmd(store_path: Path | None, host: str, port: int, writable: bool, timeout: int, max_bytes: int,
-              union_default_graph: bool) -> None:
+              max_request_bytes: int, union_default_graph: bool, allow_service: bool,
+              allow_hosts: tuple[str, ...]) -> None:
     """Serve the store as a SPARQL 1.1 Protocol endpoint for other tools and browsers.
 
     Read-only and bound to 127.0.0.1 by default: queries at /query, graphs at
     /store?graph=IRI (Graph Store Protocol, GET), updates refused with 403.
+    SERVICE is refused (403), and so are requests naming another host (421)
+    or sent by another site's web page (403). A result is sent once it is
+    complete: an error or the timeout is an error status, never a cut 200.
     New loads into the store are served as soon as they are published. Stop
     with Ctrl-C or SIGTERM; the store is left as it was.
     """
@@ -42,8 +54,12 @@ def serve_cmd(store_path: Path | None, host: str, port: int, writable: bool, tim
     if writable:
         err.print("[yellow]warning:[/] --writable: SPARQL Update and Graph Store writes are accepted; loads wait "
                   "until serve stops")
+    if allow_service:
+        err.print("[yellow]warning:[/] --allow-service: SERVICE clauses make this server send requests to any URL "
+                  "a client names")
     endpoint = Endpoint(store_path or default_store_path(), host, port, writable=writable, timeout=timeout,
-                        max_bytes=max_bytes, union_default_graph=union_default_graph)
+                        max_bytes=max_bytes, union_default_graph=union_default_graph,
+                        max_request_bytes=max_request_bytes, allow_service=allow_service, allow_hosts=allow_hosts)
     endpoint.start()
     out.print(f"serving {escape(str(endpoint.store.resolve()))} at {endpoint.url}/query "
               f"({'read-write' if writable else 'read-only'}; Ctrl-C stops)", highlight=False)

@@ -12,6 +12,7 @@ from stepnc_graph.cli.common import (
     EXIT_OK,
     RemoteOptions,
     UsageProblem,
+    err,
     open_reader,
     reports_errors,
     with_endpoint,
@@ -32,9 +33,12 @@ from stepnc_graph.cli.common import (
               help="An extra SHACL shapes file (Turtle), e.g. an organisation's own rules (repeatable).")
 @click.option("--strict", is_flag=True, help="Stop at the first Part 21 syntax error (exit 2) instead of "
                                              "recovering and reporting it.")
+@click.option("--allow-service", is_flag=True,
+              help="Let SERVICE clauses in the shapes' SPARQL send requests to the servers they name (refused "
+                   "otherwise). Prints a warning.")
 @reports_errors
 def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: RemoteOptions, graphs: tuple[str, ...],
-                 fmt: str, severity: str, extra: tuple[Path, ...], strict: bool) -> None:
+                 fmt: str, severity: str, extra: tuple[Path, ...], strict: bool, allow_service: bool) -> None:
     """Check Part 21 FILES (loaded into a throw-away store) or a store's graphs.
 
     Every result gives the instance (#id, entity, line), the attribute, the
@@ -54,12 +58,17 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         raise UsageProblem("--graph needs --store or --endpoint")
     for g in graphs:
         check_iri(g, "--graph")
+    if allow_service:
+        err.print("[yellow]warning:[/] --allow-service: SERVICE clauses in the shapes send requests to the servers "
+                  "they name", markup=True, highlight=False)
     try:
         if in_store:
             with open_reader(store_path, remote) as store:
-                report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity)
+                report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity,
+                                  allow_service=allow_service)
         else:
-            report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict)
+            report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
+                              allow_service=allow_service)
     except (ShapesError, ValueError) as exc:
         raise UsageProblem(str(exc)) from None
     text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()

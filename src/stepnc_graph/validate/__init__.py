@@ -29,7 +29,7 @@ from stepnc_graph.naming import P21_NS, instance_id
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.validate import compiled
 from stepnc_graph.validate.compiled import CompiledShapesWarning
-from stepnc_graph.validate.engine import Check, Row, run
+from stepnc_graph.validate.engine import Check, Row, refuse_service, run
 from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validate.shapes import RDF_FIRST, RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
 
@@ -131,14 +131,15 @@ def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> Comp
 
 def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shapes: Sequence[str | Path] = (),
              severity: str = "Info", lenient: bool = True, process: bool = True,
-             shapes_dir: Path | None = None) -> ValidationReport:
+             shapes_dir: Path | None = None, allow_service: bool = False) -> ValidationReport:
     """Validate Part 21 files (loaded into a throw-away store) or graphs of a store.
 
     ``source`` is a :class:`~stepnc_graph.store.GraphStore`, a
     :class:`~stepnc_graph.remote.RemoteStore` (whose graphs are copied into
     memory and checked here) or an iterable of paths. ``severity`` is the lowest severity reported. Raises
     :class:`ShapesError` for unreadable shapes and, with ``lenient=False``,
-    :class:`~stepnc_graph.part21.Part21SyntaxError` for a file that does not parse.
+    :class:`~stepnc_graph.part21.Part21SyntaxError` for a file that does not parse. A shape whose
+    SPARQL has a ``SERVICE`` clause is refused (ShapesError) unless ``allow_service``.
     """
     from stepnc_graph.store import GraphStore
 
@@ -149,6 +150,7 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
     level = severity.capitalize()
     if level not in SEVERITIES:
         raise ValueError(f"severity must be one of {', '.join(s.lower() for s in SEVERITIES)}")
+    refuse_service(list(checks), allow_service)  # before any file is loaded or graph copied
     if isinstance(source, GraphStore):
         report = _validate_store(source, graphs, shapes, list(checks), {})
     elif hasattr(source, "local_copy"):  # a remote store: its graphs are copied here and checked
@@ -238,7 +240,8 @@ def _validate_store(store: object, graphs: Sequence[str] | None, shapes: Compile
         if not oxstore.contains_named_graph(ox.NamedNode(graph)):
             raise ValueError(f"no graph {graph} in the store")
         loaded = mapped.get(graph) if mapped else None  # written by this call's Part 21 mapping
-        rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, loaded) if loaded else frozenset())
+        rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, loaded) if loaded else frozenset(),
+                      allow_service=True)  # validate() refused what it must before
         ran += n
         describer = _Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
         results += describer.results(rows)

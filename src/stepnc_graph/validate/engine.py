@@ -41,6 +41,7 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
@@ -489,12 +490,28 @@ def focus_pattern(check: Check, present: set[str]) -> str | None:
 CHECK_THREADS = max(1, min(4, os.cpu_count() or 1))
 
 
-def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] = frozenset()) -> tuple[list[Row], int]:
+def refuse_service(checks: list[Check], allow: bool = False) -> None:
+    """Raise ShapesError if a check's SPARQL (an sh:sparql constraint's, or one built from a shape)
+    would send a request to another server (``SERVICE``), unless ``allow``: every check, whether
+    or not the graph has focus nodes for it, so that a shapes file is refused whatever the data."""
+    if allow:
+        return
+    for check in checks:
+        try:
+            refuse_outbound(check.query.replace(FOCUS, "{}"))
+        except OutboundRefused as exc:
+            raise ShapesError(f"shape {check.shape}, its {check.constraint} constraint: {exc}") from None
+
+
+def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] = frozenset(),
+        allow_service: bool = False) -> tuple[list[Row], int]:
     """Run the checks whose targets occur in ``graph``; the rows, and how many checks ran.
 
     Checks whose :attr:`Check.implied` is in ``skip`` are not run (see :mod:`.implied`).
     They run on :data:`CHECK_THREADS` threads; the rows come in the order of ``checks``
-    whatever the threads' timing."""
+    whatever the threads' timing. A check with a ``SERVICE`` clause is refused (ShapesError)
+    unless ``allow_service``."""
+    refuse_service(checks, allow_service)
     g = ox.NamedNode(graph)
     present = {str(s[0]) for s in store.query("SELECT DISTINCT ?t WHERE { ?s a ?t }", default_graph=g)}  # type: ignore[union-attr]
     # a node with two types that a class target can reach: not the file node (p21:ExchangeStructure, prov:Entity)
