@@ -3,11 +3,15 @@
 Source text quoted in a message is user data: a one-line file can be 50 MB and
 a damaged one can hold terminal escape sequences. So a quoted line is a window
 of :data:`WINDOW` characters each side of the column, with control characters
-escaped, and quoted tokens are cut by :func:`show`.
+escaped, and quoted tokens are cut by :func:`show`. Which characters count as
+control characters, and how one is written escaped, is defined here once
+(:data:`CONTROLS`, :func:`escaped`); the CLI shows every untrusted text with them
+(``stepnc_graph.cli.common.terminal_safe``).
 """
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 #: characters of a source line shown on each side of an error's column
@@ -19,17 +23,30 @@ class StepncGraphWarning(UserWarning):
     """A warning of stepnc-graph's own (the CLI prints these; other libraries' follow Python's filters)."""
 
 
-def _escape_char(ch: str) -> str:
-    code = ord(ch)
-    if ch == "\t" or (0x20 <= code < 0x7F) or code > 0x9F:
-        return ch
-    return f"\\x{code:02x}"
+#: The characters a terminal acts on instead of showing them, as a regular-expression class body:
+#: the C0 controls but tab and line feed (ESC starts every escape sequence; CR returns to the start
+#: of the line and so overwrites it), DEL, the C1 controls (U+009B is CSI for a terminal that reads
+#: 8-bit controls) and Unicode's bidirectional formatting characters (ALM, LRM, RLM, the embeddings,
+#: overrides and isolates), which reorder the text after them: U+202E shows "exe.txt" of "txt.exe".
+CONTROLS = "\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069"
+_CONTROL = re.compile(f"[{CONTROLS}\n]")
+
+
+def escaped(character: str, uchar: bool = False) -> str:
+    """How a control character is shown: ``\\x1b``, ``\\u202e`` (Python's notation), or ``\\u001b``
+    with ``uchar`` (the escape of JSON, Turtle and N-Triples strings, which their readers decode)."""
+    code = ord(character)
+    return f"\\u{code:04x}" if uchar or code > 0xFF else f"\\x{code:02x}"
+
+
+def _printable(text: str) -> str:
+    return _CONTROL.sub(lambda m: escaped(m.group()), text)
 
 
 def excerpt(line: str, column: int) -> tuple[str, int]:
     """A printable window of ``line`` around 1-based ``column`` and the caret's column in it.
 
-    Control characters (C0, DEL, C1: what terminals interpret) become ``\\xNN``;
+    Control characters (:data:`CONTROLS`: what terminals interpret) become ``\\xNN`` (``\\uNNNN``);
     a line longer than the window is cut with ``...`` on the cut side(s).
     """
     line = line.rstrip("\r\n")
@@ -37,8 +54,8 @@ def excerpt(line: str, column: int) -> tuple[str, int]:
     start = max(index - WINDOW, 0)
     end = min(index + WINDOW, len(line))
     head = _ELLIPSIS if start > 0 else ""
-    before = "".join(_escape_char(c) for c in line[start:index])
-    after = "".join(_escape_char(c) for c in line[index:end])
+    before = _printable(line[start:index])
+    after = _printable(line[index:end])
     tail = _ELLIPSIS if end < len(line) else ""
     return head + before + after + tail, len(head) + len(before) + 1
 

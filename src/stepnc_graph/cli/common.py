@@ -6,28 +6,115 @@ pieces they all need, so the commands stay thin and report errors alike: a
 user error (bad input, bad usage, a store that cannot be used) is one line on
 standard error -- or a JSON object on standard output under ``--format json``
 -- and exit code 2, never a traceback.
+
+Much of what the CLI prints is untrusted: file names, values of a program, link
+identifiers, the text of an error from Oxigraph or from a remote server. A terminal
+acts on some characters instead of showing them (escape sequences set the window
+title, make links, clear the screen; U+202E reverses the text after it), so the CLI
+shows such text through :func:`terminal_safe` at the two places it writes: its rich
+consoles (:data:`out`, :data:`err`) and :func:`write_out` for data. Standard error is
+always made safe; standard output only when it is a terminal -- into a pipe or a
+file, data stays exact. Text put into rich markup goes through :func:`escape`, so
+``[bold]`` or ``[link=...]`` in data is shown, never read as markup.
 """
 
 from __future__ import annotations
 
 import functools
+import io
 import json
+import re
 import sys
 from dataclasses import dataclass
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, cast
+from typing import IO, TYPE_CHECKING, Any, NoReturn, TypeVar, cast
 
 import click
 
+from stepnc_graph.errors import CONTROLS, escaped
+
 if TYPE_CHECKING:
     from rich.console import Console
+    from rich.segment import Segment
 
     from stepnc_graph.store import Store, Writer
 
 EXIT_OK, EXIT_NONCONFORMING, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
+
+#: Characters shown escaped where line breaks are kept: every control but a line feed and the
+#: carriage return of a CR LF (CSV ends its lines so); a lone CR would overwrite the line.
+_UNSAFE_IN_TEXT = re.compile(f"(?!\r\n)[{CONTROLS}]")
+#: ... and where one value must stay on one line (a table cell): line breaks too.
+_UNSAFE_IN_LINE = re.compile(f"[{CONTROLS}\n]")
+
+
+def terminal_safe(text: str, newlines: bool = True, uchar: bool = False) -> str:
+    """``text`` as a terminal must receive it: each character a terminal would act on (C0 and C1
+    controls but tab, ESC among them, DEL, the bidirectional overrides such as U+202E) written as a
+    visible escape, ``\\x1b`` or ``\\u202e``; everything else as it is.
+
+    ``newlines``: keep line breaks (``\\n`` and ``\\r\\n``); else they are escaped too, for a
+    value that must stay on its line. ``uchar``: write ``\\u001b``, the escape of JSON, Turtle and
+    N-Triples strings, so such a document stays valid and means the same to a reader (where these
+    formats allow such characters at all, it is inside strings).
+    """
+    pattern = _UNSAFE_IN_TEXT if newlines else _UNSAFE_IN_LINE
+    return pattern.sub(lambda m: escaped(m.group(), uchar), text)
+
+
+def safe_cell(text: str) -> str:
+    """One value of a table or report for a terminal: :func:`terminal_safe`, line breaks escaped."""
+    return terminal_safe(text, newlines=False)
+
+
+def is_terminal(stream: IO[Any] | Any) -> bool:
+    """Whether ``stream`` is a terminal (a closed or unusual stream counts as not one)."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+def write_out(data: str | bytes, uchar: bool = False) -> None:
+    """Data (query results, an export, a report) on standard output: exact into a pipe or a file;
+    on a terminal through :func:`terminal_safe` (``uchar`` for JSON and RDF syntaxes: still valid)."""
+    if is_terminal(sys.stdout):
+        text = data.decode("utf-8", "backslashreplace") if isinstance(data, bytes) else data
+        data = terminal_safe(text, uchar=uchar)
+    if isinstance(data, str):
+        sys.stdout.write(data)
+    else:
+        sys.stdout.flush()
+        sys.stdout.buffer.write(data)
+    sys.stdout.flush()
+
+
+def echo_json(document: Any) -> None:
+    """A JSON document (the ``--format json`` outputs) on standard output, see :func:`write_out`."""
+    write_out(json.dumps(document, indent=2) + "\n", uchar=True)
+
+
+def _console(stderr: bool) -> Console:
+    """A rich console that shows every text it renders through :func:`terminal_safe`: always on
+    standard error, on standard output when that is a terminal.
+
+    Rendering is the one place all of a console's text passes -- messages, table cells, progress
+    descriptions, the status line -- after rich has laid it out and before it adds its own escape
+    sequences (styles, cursor moves: the control segments, left as they are).
+    """
+    from rich.console import Console
+
+    class SafeConsole(Console):
+        def _render_buffer(self, buffer: Iterable[Segment]) -> str:
+            if stderr or is_terminal(self.file):
+                buffer = [s if s.control else s._replace(text=terminal_safe(s.text)) for s in buffer]
+            return super()._render_buffer(buffer)
+
+    return SafeConsole(stderr=stderr, highlight=False, soft_wrap=True)
 
 
 class _LazyConsole:
@@ -45,9 +132,7 @@ class _LazyConsole:
     @property
     def console(self) -> Console:
         if self._console is None:
-            from rich.console import Console
-
-            self._console = Console(stderr=self._stderr, highlight=False, soft_wrap=True)
+            self._console = _console(self._stderr)
         return self._console
 
     def __getattr__(self, name: str) -> Any:
@@ -117,7 +202,7 @@ def print_error(exc: BaseException, hint: str = "") -> None:
 def fail(errors: list[BaseException], fmt: str = "text") -> NoReturn:
     """Report input errors and exit 2."""
     if fmt == "json":
-        click.echo(json.dumps({"ok": False, "errors": [error_record(e) for e in errors]}, indent=2))
+        echo_json({"ok": False, "errors": [error_record(e) for e in errors]})
     else:
         for e in errors:
             print_error(e)
@@ -257,12 +342,33 @@ def open_reader(store_path: Path | None, remote: RemoteOptions | None = None) ->
     return open_store(store_path, readonly=True)
 
 
+@contextmanager
+def _safe_usage_errors() -> Iterator[None]:
+    """Click's usage errors quote the command line (``Got unexpected extra argument (...)``): what
+    click would print on standard error is printed through :func:`terminal_safe`, same exit code."""
+    try:
+        yield
+    except click.ClickException as exc:
+        shown = io.StringIO()
+        exc.show(file=shown)
+        sys.stderr.write(terminal_safe(shown.getvalue()))
+        sys.stderr.flush()
+        sys.exit(exc.exit_code)
+
+
 class Group(click.Group):
-    """The CLI's groups: Ctrl-C exits 130 (scripts read 1 as "non-conforming data")."""
+    """The CLI's groups: Ctrl-C exits 130 (scripts read 1 as "non-conforming data"); usage errors
+    show the command line's text escaped."""
+
+    def make_context(self, info_name: str | None, args: list[str], parent: click.Context | None = None,
+                     **extra: Any) -> click.Context:
+        with _safe_usage_errors():
+            return super().make_context(info_name, args, parent, **extra)
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
-            return super().invoke(ctx)
+            with _safe_usage_errors():
+                return super().invoke(ctx)
         except KeyboardInterrupt:
             err.print("interrupted")
             sys.exit(EXIT_INTERRUPTED)

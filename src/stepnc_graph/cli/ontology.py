@@ -6,7 +6,6 @@ the commands: every command line, ``--help`` included, imports this module.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -14,7 +13,16 @@ from typing import Any
 
 import click
 
-from stepnc_graph.cli.common import EXIT_NONCONFORMING, EXIT_OK, err, escape, fail_input, out, root_option
+from stepnc_graph.cli.common import (
+    EXIT_NONCONFORMING,
+    EXIT_OK,
+    echo_json,
+    err,
+    escape,
+    fail_input,
+    out,
+    root_option,
+)
 from stepnc_graph.resources import data_root
 
 
@@ -45,11 +53,11 @@ def ontology_build(root: Path | None, check: bool) -> None:
     seconds = time.perf_counter() - started
     if check:
         for rel in result.stale:
-            out.print(f"stale: {rel}")
+            out.print(f"stale: {escape(str(rel))}")
         out.print(f"{len(result.unchanged)} up to date, {len(result.stale)} stale ({seconds:.2f} s)")
         sys.exit(EXIT_NONCONFORMING if result.stale else EXIT_OK)
     for rel in result.written:
-        out.print(f"wrote {rel}")
+        out.print(f"wrote {escape(str(rel))}")
     out.print(f"{len(result.written)} written, {len(result.unchanged)} unchanged ({seconds:.2f} s)")
 
 
@@ -74,8 +82,8 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
         fail_input(exc, fmt)
     complete = all(r.complete for r in rows)
     if fmt == "json":
-        click.echo(json.dumps({"complete": complete, "schemas": [r.asdict() for r in rows],
-                               "where_rules": [r.asdict() for r in rules]}, indent=2))
+        echo_json({"complete": complete, "schemas": [r.asdict() for r in rows],
+                   "where_rules": [r.asdict() for r in rules]})
     else:
         table = Table(title="ISO 14649 ontology coverage (EXPRESS / OWL)")
         for col in ("schema", "entities", "types", "attributes", "complete"):
@@ -96,7 +104,7 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
         _print_table(rule_table)
         for rs in rules:
             for rule, why in rs.untranslated:
-                out.print(f"  not translated: {rs.schema} {rule}: {escape(why)}")
+                out.print(f"  not translated: {escape(rs.schema)} {escape(rule)}: {escape(why)}")
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
 
 

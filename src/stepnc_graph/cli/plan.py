@@ -17,6 +17,7 @@ from stepnc_graph.cli.common import (
     reports_errors,
     with_endpoint,
     with_store,
+    write_out,
 )
 from stepnc_graph.cli.query import open_programs
 
@@ -73,12 +74,12 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     except OSError as exc:
         _fail(f"cannot write: {exc}")
     if fmt == "json":
-        click.echo(plan.to_json())
+        write_out(plan.to_json() + "\n", uchar=True)
     else:
         _print_summary(plan)
     for path in (graphml, svg, png):
         if path:
-            err.print(f"wrote {path}")
+            err.print(f"wrote {escape(str(path))}")
     sys.exit(EXIT_OK)
 
 
@@ -87,22 +88,22 @@ def _print_summary(plan: object) -> None:
 
     assert isinstance(plan, Plan)
     changes = plan.tool_changes()
-    out.print(f"[bold]{plan.program}[/]: {len(plan.steps)} workingsteps, {len(changes)} tool changes",
+    out.print(f"[bold]{escape(plan.program)}[/]: {len(plan.steps)} workingsteps, {len(changes)} tool changes",
               markup=True, highlight=False)
     changed = {c.order for c in changes}
     for setup, steps in plan.workingsteps_per_setup().items():
-        out.print(f"  [bold]{setup or '(no setup)'}[/]", markup=True, highlight=False)
+        out.print(f"  [bold]{escape(setup or '(no setup)')}[/]", markup=True, highlight=False)
         for s in steps:
             mark = "T" if s.order in changed else " "
             tool = f"{s.tool.label} {s.tool.ref}" if s.tool else "-"
             out.print(f"   {mark} {s.order:>4}. {s.workingstep.label} {s.workingstep.ref}  [{s.kind or '-'}]  "
                       f"tool {tool}", markup=False, highlight=False)
     for p in plan.precedence_violations():
-        out.print(f"  [red]precedence:[/] {p.feature.label} {p.feature.ref}: finishing step {p.finish} runs before "
-                  f"roughing step {p.rough}", markup=True, highlight=False)
+        out.print(f"  [red]precedence:[/] {escape(p.feature.label)} {p.feature.ref}: finishing step {p.finish} runs "
+                  f"before roughing step {p.rough}", markup=True, highlight=False)
     for tool, setups in plan.shared_tools().items():
-        out.print(f"  shared tool {tool}: {', '.join(setups)}", highlight=False)
+        out.print(f"  shared tool {tool}: {', '.join(setups)}", markup=False, highlight=False)
     critical = plan.critical_tool()
     if critical:
         out.print(f"  critical tool: {critical[0].label} {critical[0].ref} ({critical[1]} workingsteps)",
-                  highlight=False)
+                  markup=False, highlight=False)

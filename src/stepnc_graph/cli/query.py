@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -13,13 +12,17 @@ from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_OK,
     RemoteOptions,
+    echo_json,
     err,
     escape,
+    is_terminal,
     open_reader,
     out,
     reports_errors,
+    safe_cell,
     with_endpoint,
     with_store,
+    write_out,
 )
 
 if TYPE_CHECKING:
@@ -88,13 +91,17 @@ def open_programs(programs: list[Path], store_path: Path | None, memory: bool, r
               help="A query parameter (repeatable); see `stepnc-graph queries NAME`.")
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True,
               help="csv, tsv and json are the SPARQL 1.1 results formats.")
+@click.option("--csv-raw", is_flag=True,
+              help="csv/tsv: the W3C form exactly. By default a text starting with = + - @, tab or CR gets a "
+                   "leading ' so that a spreadsheet shows it instead of running it as a formula.")
 @click.option("--lenient", is_flag=True, help="Load FILE.stp arguments leniently.")
 @click.option("--allow-service", is_flag=True,
               help="Let SERVICE clauses send their requests to the servers they name (refused otherwise). "
                    "Prints a warning.")
 @reports_errors
 def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, memory: bool, remote: RemoteOptions,
-              graph: str | None, params: tuple[str, ...], fmt: str, lenient: bool, allow_service: bool) -> None:
+              graph: str | None, params: tuple[str, ...], fmt: str, csv_raw: bool, lenient: bool,
+              allow_service: bool) -> None:
     """Run NAME (a library query), FILE.rq, - (SPARQL on standard input) or -e 'SPARQL' over the store
     or over FILE.stp programs.
 
@@ -108,6 +115,10 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
     file's graph IRI). Parameters are bound as RDF terms, never pasted into
     the query text. Queries are read-only, and a SERVICE clause (a request
     to another server) is refused unless --allow-service is given.
+
+    On a terminal, control characters in values (escape sequences, the
+    bidirectional overrides) are shown escaped, \\x1b; into a pipe or a file
+    the values are written exactly.
 
     Exit codes: 0 ok; 2 a syntax error, bad parameter, unknown query or graph
     (with file, line and column where they apply).
@@ -140,8 +151,8 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
             _fail(str(exc))
     for warning in result.warnings:
         err.print(f"[yellow]warning:[/] {escape(warning)}", markup=True, highlight=False)
-    sys.stdout.buffer.write(result.serialize(fmt))
-    sys.stdout.flush()
+    cell = safe_cell if is_terminal(sys.stdout) else None
+    write_out(result.serialize(fmt, csv_raw=csv_raw, cell=cell), uchar=fmt == "json" or result.kind == "graph")
     if fmt in ("table", "md") and result.kind == "select":
         click.secho(f"{len(result)} row(s)", err=True, dim=True)  # not rich: its import is a third of the run
     sys.exit(EXIT_OK)
@@ -162,27 +173,28 @@ def queries_cmd(name: str | None, fmt: str) -> None:
         if q.source == "-e":
             _fail(f"{name!r} is not a library query name")
         if fmt == "json":
-            click.echo(json.dumps({"name": q.name, "title": q.title, "description": q.description,
-                                   "params": [p.describe() for p in q.params], "examples": list(q.examples),
-                                   "sparql": q.text}, indent=2))
+            echo_json({"name": q.name, "title": q.title, "description": q.description,
+                       "params": [p.describe() for p in q.params], "examples": list(q.examples), "sparql": q.text})
             return
-        out.print(f"[bold]{q.name}[/]: {q.title}\n{q.description}", markup=True, highlight=False)
+        out.print(f"[bold]{escape(q.name)}[/]: {escape(q.title)}\n{escape(q.description)}", markup=True,
+                  highlight=False)
         for p in q.params:
-            out.print(f"  --param {p.describe()}", highlight=False)
+            out.print(f"  --param {p.describe()}", markup=False, highlight=False)
         for e in q.examples:
-            out.print(f"  e.g. {e}", highlight=False)
-        out.print(f"[dim]{q.source}[/]", markup=True, highlight=False)
-        click.echo(q.text)
+            out.print(f"  e.g. {e}", markup=False, highlight=False)
+        out.print(f"[dim]{escape(q.source)}[/]", markup=True, highlight=False)
+        write_out(q.text + "\n")
         return
     rows = describe_library()
     if fmt == "json":
-        click.echo(json.dumps({"queries": rows}, indent=2))
+        echo_json({"queries": rows})
         return
     width = max(len(r["name"]) for r in rows)
     for r in rows:
-        out.print(f"[bold]{r['name'].ljust(width)}[/]  {r['title']}", markup=True, highlight=False)
+        out.print(f"[bold]{escape(r['name'].ljust(width))}[/]  {escape(r['title'])}", markup=True, highlight=False)
         for p in r["params"]:
             default = f" = {p['default']}" if p["default"] is not None else " (required)"
-            out.print(f"{' ' * width}    --param {p['name']} ({p['type']}){default}", highlight=False)
+            out.print(f"{' ' * width}    --param {p['name']} ({p['type']}){default}", markup=False,
+                      highlight=False)
     out.print(f"[dim]{len(rows)} queries; `stepnc-graph queries NAME` shows one, "
               f"`stepnc-graph query NAME` runs it[/]", markup=True)

@@ -6,7 +6,6 @@ check``: ``schema entity`` reads the compiled model and never needs them.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -14,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_OK, err, fail_input, out
+from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_OK, echo_json, err, escape, fail_input, out
 
 if TYPE_CHECKING:
     from stepnc_graph.express.parser import ParsedSchema
@@ -57,10 +56,10 @@ def schema_check(files: tuple[Path, ...], parse_only: bool, fmt: str) -> None:
         "types": len(model.types) if model else None,
     }
     if fmt == "json":
-        click.echo(json.dumps(summary, indent=2))
+        echo_json(summary)
         return
     for name, seconds in timings.items():
-        out.print(f"parsed {name} in {seconds:.2f} s")
+        out.print(f"parsed {escape(name)} in {seconds:.2f} s")
     if model is not None:
         out.print(f"{len(parsed)} schema(s) resolved: {len(model.entities)} entities, {len(model.types)} types")
     else:
@@ -81,7 +80,7 @@ def schema_entity(names: tuple[str, ...]) -> None:
     for name in names:
         decl = model.get(name)
         if decl is None or model.kind_of(name) != "entity":
-            err.print(f"[bold red]error:[/] {name} is not an entity of the shipped schemas")
+            err.print(f"[bold red]error:[/] {escape(name)} is not an entity of the shipped schemas")
             status = EXIT_BAD_INPUT
             continue
         e = model.entity(name)

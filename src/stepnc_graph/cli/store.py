@@ -8,7 +8,6 @@ and never wait.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -20,6 +19,7 @@ from stepnc_graph.cli.common import (
     EXIT_NONCONFORMING,
     EXIT_OK,
     UsageProblem,
+    echo_json,
     err,
     error_record,
     escape,
@@ -32,6 +32,7 @@ from stepnc_graph.cli.common import (
     wait_option,
     with_endpoint,
     with_store,
+    write_out,
 )
 
 if TYPE_CHECKING:
@@ -98,7 +99,7 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
         done = 0
         for source, size in zip(sources, sizes, strict=True):
             def advance(position: int, total: int, base: int = done, size: int = size,
-                        label: str = f"loading {Path(source.name).name}") -> None:
+                        label: str = f"loading {escape(Path(source.name).name)}") -> None:
                 if bar is not None and task is not None:
                     bar.update(task, completed=base + position * size // max(total, 1), description=label)
 
@@ -150,8 +151,7 @@ def _bar(counter: Any) -> Progress:
 
 def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt: str) -> NoReturn:
     if fmt == "json":
-        doc = {"files": [r.asdict() for r in results], "errors": [error_record(e) for e in failures]}
-        click.echo(json.dumps(doc, indent=2))
+        echo_json({"files": [r.asdict() for r in results], "errors": [error_record(e) for e in failures]})
     else:
         for r in results:
             errors = sum(d.severity == "error" for d in r.diagnostics)
@@ -200,8 +200,7 @@ def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None
     with open_reader(store_path, remote) as store:
         data = export(store, fmt, graph)
     if output is None:
-        sys.stdout.buffer.write(data)
-        sys.stdout.flush()
+        write_out(data, uchar=fmt != "p21")
     else:
         output.write_bytes(data)
         err.print(f"wrote {escape(str(output))} ({len(data)} bytes)")
@@ -269,7 +268,7 @@ def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
         result = compact(store, advance)
         location = _location(store)
     if fmt == "json":
-        click.echo(json.dumps({"store": location, **result.asdict()}, indent=2))
+        echo_json({"store": location, **result.asdict()})
         return
     out.print(f"compacted {escape(location)}: {result.before / 1e6:,.0f} MB -> {result.after / 1e6:,.0f} MB on "
               f"disk ({result.quads:,} quads)")
@@ -303,8 +302,7 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
         location = _location(store)
         deleted = getattr(store, "deleted_quads", None)  # an endpoint manages its own storage
     if fmt == "json":
-        click.echo(json.dumps({"store": location, "graphs": [r.asdict() for r in rows], "deleted_quads": deleted},
-                              indent=2))
+        echo_json({"store": location, "graphs": [r.asdict() for r in rows], "deleted_quads": deleted})
         return
     out.print(f"{len(rows)} graph(s) in {escape(location)}")
     if deleted:

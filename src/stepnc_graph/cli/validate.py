@@ -16,6 +16,7 @@ from stepnc_graph.cli.common import (
     open_reader,
     reports_errors,
     with_endpoint,
+    write_out,
 )
 
 
@@ -72,5 +73,5 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     except (ShapesError, ValueError) as exc:
         raise UsageProblem(str(exc)) from None
     text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
-    click.echo(text, nl=False)
+    write_out(text, uchar=fmt != "text")
     sys.exit(EXIT_OK if report.conforms else EXIT_NONCONFORMING)

@@ -77,7 +77,12 @@ class ValidationReport:
         return json.dumps(doc, indent=2, ensure_ascii=False)
 
     def to_text(self) -> str:
-        """Grouped by instance, sorted by line: ``line 23  #20 FACING_ROUGH  allowance: ...  [clause, rule]``."""
+        """Grouped by instance, sorted by line: ``line 23  #20 FACING_ROUGH  allowance: ...  [clause, rule]``.
+
+        One line per result: a line break inside a message (a value from the program, a shapes
+        file's ``sh:message``) is written ``\\n`` (``\\r``), so it can neither split a result
+        nor pass for another one. The JSON and Turtle reports keep the text exactly.
+        """
         lines: list[str] = []
         for graph in self.graphs:
             mine = [r for r in self.results if r.graph == graph]
@@ -92,7 +97,7 @@ class ValidationReport:
                     where = f"{r.path}: " if r.path else ""
                     cite = ", ".join(x for x in (r.clause, r.rule) if x)
                     tag = "" if r.severity == "Violation" else f"{r.severity.lower()}: "
-                    text = f"{tag}{where}{r.message}{f'  [{cite}]' if cite else ''}"
+                    text = _one_line(f"{tag}{where}{r.message}{f'  [{cite}]' if cite else ''}")
                     lines.append(f"{lead}  {text}" if i == 0 else f"{' ' * len(lead)}  {text}")
         return "\n".join(lines) + "\n"
 
@@ -130,7 +135,12 @@ def _term(value: str) -> str:
 
 
 def _literal(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    """A Turtle string: backslash, quote and both line breaks escaped (Turtle allows neither raw)."""
+    return '"' + _one_line(text.replace("\\", "\\\\").replace('"', '\\"')) + '"'
+
+
+def _one_line(text: str) -> str:
+    return text.replace("\r", "\\r").replace("\n", "\\n")
 
 
 def _by_instance(results: Iterable[Result]) -> list[tuple[tuple[int | None, int | None, str | None], list[Result]]]:
