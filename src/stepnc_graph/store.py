@@ -91,13 +91,12 @@ from typing import Any, BinaryIO, Protocol
 import pyoxigraph as ox
 
 from stepnc_graph.kept import BLANK_OBJECT, KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
-from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
+from stepnc_graph.naming import P21_NS, STAGING, VOCABULARY_GRAPH, GraphLayout, refuse_strangers
 
 STORE_ENV = "STEPNC_GRAPH_STORE"
 DEFAULT_STORE = ".stepnc-graph"
 FORMAT_VERSION = 2
 MARKER = "stepnc-graph-store.json"
-STAGING = "urn:stepnc-graph:staging:"
 LOAD_THREADS = max(1, min(4, os.cpu_count() or 1))
 #: N-Triples characters per bulk_load call (about 120k triples). Oxigraph's bulk
 #: loader and RocksDB hold memory in proportion to one call; 12M characters
@@ -228,6 +227,8 @@ class Store(Protocol):
     def update(self, sparql: str) -> None: ...
 
     def graphs(self) -> list[str]: ...
+
+    def all_graphs(self) -> list[str]: ...
 
     def has_graph(self, graph: str) -> bool: ...
 
@@ -748,7 +749,11 @@ class GraphStore:
         the load is committed; ``target(name)`` gives the graph to write now for
         ``graph`` or a companion (a staging graph, for an in-memory
         replacement). An exception from it (or from ``chunks``) rolls back.
+        A reserved name, or a companion outside ``graph``'s companion namespace, is refused
+        (:func:`~stepnc_graph.naming.refuse_strangers`); which program may take which name
+        is for the writing commands to check (:class:`~stepnc_graph.naming.GraphLayout`).
         """
+        refuse_strangers(graph, companions)
         if self.path is None:
             self._replace_in_memory(graph, chunks, before_commit, companions)
             return
@@ -775,7 +780,9 @@ class GraphStore:
 
         Deleted quads keep their disk space until the database is compacted: beside other
         programs that happens once enough was deleted (:meth:`_settle`), or now with
-        ``compact``. Removed by a rebuild, the space comes back at once."""
+        ``compact``. Removed by a rebuild, the space comes back at once. Refuses what
+        :meth:`replace_graph` refuses."""
+        refuse_strangers(graph, companions)
         if not self._db.contains_named_graph(ox.NamedNode(graph)):
             return False
         if self.path is None:
@@ -1429,11 +1436,8 @@ class GraphStore:
 
     def graphs(self) -> list[str]:
         """The loaded files' graphs (and graphs users or `link` added): not staging graphs, the
-        vocabulary graph or a file's derived layer."""
-        names = {g.value for g in self._db.named_graphs()
-                 if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING)}
-        names.discard(VOCABULARY_GRAPH)
-        return sorted(names - {derived_graph_iri(g) for g in names})
+        vocabulary graph or a program's derived layer (see :func:`graph_layout`)."""
+        return graph_layout(self).listed()
 
     def all_graphs(self) -> list[str]:
         """Every named graph but staging ones: with the vocabulary and the derived layers."""
@@ -1671,6 +1675,25 @@ class _BlankMatch:
         if was is None:
             was = self.renamed[label] = uuid.uuid4().hex.encode("ascii")
         return was
+
+
+def graph_layout(store: Store) -> GraphLayout:
+    """What each named graph of ``store`` is, from its records (:class:`GraphLayout`): the program
+    graphs (``p21:ExchangeStructure``) and the link graphs with their program (``p21:LinkGraph``,
+    ``p21:linkedProgram``). One query, answered from the indexes of those two classes, on any store."""
+    rows = store.query(f"SELECT ?g ?program WHERE {{ GRAPH ?g {{ {{ ?g a <{P21_NS}ExchangeStructure> }} UNION "
+                       f"{{ ?g a <{P21_NS}LinkGraph> ; <{P21_NS}linkedProgram> ?program }} }} }}")
+    programs: set[str] = set()
+    links: dict[str, str] = {}
+    for row in rows:
+        graph, program = row[0], row[1]
+        if not isinstance(graph, ox.NamedNode):
+            continue
+        if program is None:
+            programs.add(graph.value)
+        elif isinstance(program, ox.NamedNode):
+            links[graph.value] = program.value
+    return GraphLayout(frozenset(store.all_graphs()), frozenset(programs), links)
 
 
 def directory_bytes(path: Path) -> int:
