@@ -90,6 +90,7 @@ from typing import Any, BinaryIO, Protocol
 
 import pyoxigraph as ox
 
+from stepnc_graph.handoff import Handoff
 from stepnc_graph.kept import BLANK_OBJECT, KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
 from stepnc_graph.naming import P21_NS, STAGING, VOCABULARY_GRAPH, GraphLayout, refuse_strangers
 
@@ -260,6 +261,11 @@ class Writer:
     def __str__(self) -> str:
         who = f"pid {self.pid}" if self.pid else "another process"
         return f"{who}{': ' + self.command if self.command else ''}{', since ' + self.since if self.since else ''}"
+
+
+class StoreWriteError(StoreError, OSError):
+    """A write that the store's own files refused (a full disk, a read-only one), rolled back: a
+    :class:`StoreError` that names the store, and still the ``OSError`` it was (``errno``)."""
 
 
 class StoreBusy(StoreError):
@@ -533,10 +539,33 @@ class GraphStore:
         if self.readonly:
             raise StoreError(f"the store in {self.path} was opened read-only")
         dirty = self._file("work.dirty")
-        if not dirty.exists():
-            dirty.write_text("")
-            _fsync_dir(self.path)
+        try:
+            if not dirty.exists():
+                dirty.write_text("")
+                _fsync_dir(self.path)
+        except OSError as e:
+            raise self._disk_error(e) or e from None
         self._since = self._current()
+
+    def _disk_error(self, exc: BaseException) -> StoreWriteError | None:
+        """A write's error as a :class:`StoreWriteError` naming the store, when the store's own
+        files refused it (a full disk, a read-only one: Oxigraph's errors name no file, Python's a
+        file in the store); None for any other error, such as an input file that cannot be read."""
+        if not isinstance(exc, OSError) or isinstance(exc, StoreWriteError) or self.path is None:
+            return None
+        name = exc.filename
+        if name is not None and not Path(os.path.abspath(name)).is_relative_to(Path(os.path.abspath(self.path))):
+            return None
+        reason = f"{exc.strerror} ({name})" if exc.strerror and name else exc.strerror or str(exc)
+        error = StoreWriteError(f"cannot write to the store in {self.path}: {reason}; the store is as it was before")
+        error.errno = exc.errno
+        return error
+
+    def _failed(self, exc: BaseException) -> None:
+        """Roll a failed write back and raise its error (see :meth:`_disk_error`)."""
+        self._rollback()
+        if (error := self._disk_error(exc)) is not None:
+            raise error from exc
 
     def _publish(self) -> None:
         """Checkpoint ``work/`` as the next generation and name it in ``CURRENT``."""
@@ -771,8 +800,8 @@ class GraphStore:
                 self._remove(how, present)
                 self._load_kept(graph, chunks, before_commit, [graph, *companions])
             self._commit()
-        except BaseException:
-            self._rollback()
+        except BaseException as exc:
+            self._failed(exc)
             raise
 
     def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
@@ -799,8 +828,8 @@ class GraphStore:
             if how == "delete":
                 self._settle(removed, held - removed, compact)
             self._commit()
-        except BaseException:
-            self._rollback()
+        except BaseException as exc:
+            self._failed(exc)
             raise
         return True
 
@@ -1270,33 +1299,36 @@ class GraphStore:
         in_memory = self.path is None if in_memory is None else in_memory
         threads_n = 1 if in_memory else LOAD_THREADS  # see MEMORY_BATCH_CHARS
         # the chunks encoded once (here, also for the tee): the main graph's as bytes, a
-        # companion's as (its graph, bytes)
-        work: queue.Queue[bytes | tuple[str, bytes] | None] = queue.Queue(maxsize=2 * threads_n)
+        # companion's as (its graph, bytes). The first error of any thread aborts the hand-off,
+        # which stops the producer and every worker (see stepnc_graph.handoff).
+        work: Handoff[bytes | tuple[str, bytes]] = Handoff(2 * threads_n)
         errors: list[BaseException] = []
         main = ox.NamedNode(graph)
-        finished = threading.Event()
         # No local name holds the database: a failure's traceback keeps this frame
         # alive, and the rollback must be able to close the database.
 
-        def pull(budget: int, large: list[bytes | tuple[str, bytes]]) -> Iterator[bytes]:
-            """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth;
-            a chunk too large for the streaming reader, or a companion's, ends the call and
-            goes to ``large``."""
-            used = 0
-            while used < budget:
-                item = work.get()
-                if item is None:
-                    finished.set()
-                    return
-                if type(item) is not bytes or len(item) > DIRECT_CHARS:
-                    large.append(item)
-                    return
-                used += len(item)
-                yield item
-
         def worker() -> None:
+            ended = False
+
+            def pull(budget: int, large: list[bytes | tuple[str, bytes]]) -> Iterator[bytes]:
+                """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth;
+                a chunk too large for the streaming reader, or a companion's, ends the call and
+                goes to ``large``."""
+                nonlocal ended
+                used = 0
+                while used < budget:
+                    item = work.get()
+                    if item is None:
+                        ended = True
+                        return
+                    if type(item) is not bytes or len(item) > DIRECT_CHARS:
+                        large.append(item)
+                        return
+                    used += len(item)
+                    yield item
+
             try:
-                while not finished.is_set():
+                while not ended:
                     large: list[bytes | tuple[str, bytes]] = []
                     if in_memory:
                         data = b"".join(pull(MEMORY_BATCH_CHARS, large))
@@ -1309,30 +1341,30 @@ class GraphStore:
                         into, data = ((ox.NamedNode(target(item[0])), item[1]) if isinstance(item, tuple)
                                       else (main, item))
                         self._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=into, lenient=True)
-            except BaseException as exc:  # noqa: BLE001 -- handed to the producer thread
+                    if work.aborted:  # another thread failed: what this one loaded is rolled back
+                        return
+            except BaseException as exc:  # noqa: BLE001 -- raised by the producer thread
                 errors.append(exc)
-                finished.set()
-                while work.get() is not None:  # drain so the producer never blocks
-                    pass
+                work.abort()
 
         threads = [threading.Thread(target=worker, daemon=True) for _ in range(threads_n)]
         for t in threads:
             t.start()
         try:
             for chunk in chunks:
-                if errors:
-                    break
                 into, data = (graph, chunk.encode("utf-8")) if type(chunk) is str else (
                     chunk.graph, chunk.text.encode("utf-8"))  # type: ignore[union-attr]
                 if self._tee is not None:
                     self._tee.write_bytes(into, data)
-                if type(chunk) is str:
-                    work.put(data)
-                elif not isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
-                    work.put((into, data))
+                if isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
+                    continue
+                if not work.put(data if type(chunk) is str else (into, data)):
+                    break  # a worker failed
+        except BaseException:
+            work.abort()
+            raise
         finally:
-            for _ in threads:
-                work.put(None)
+            work.close()
             for t in threads:
                 t.join()
         if errors:
@@ -1423,8 +1455,8 @@ class GraphStore:
             self._rebuild_without(set(), progress)
             self._db.optimize()  # the bulk loader's tables, merged now rather than beside the published ones
             self._commit()
-        except BaseException:
-            self._rollback()
+        except BaseException as exc:
+            self._failed(exc)
             raise
 
     def disk_bytes(self) -> int:
