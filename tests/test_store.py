@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import itertools
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -962,3 +963,44 @@ def test_a_full_disk_fails_the_load_cleanly(tmp_path: Path, free_mb: int) -> Non
         assert _cli("export", "--store", store, "--format", "nq").stdout == before
         with sg.open_store(store) as s:  # not StoreBusy: the failed load let go of the lock
             assert [g.graph for g in sg.info(s)] == [sg.info(s)[0].graph] and s.count() > 0
+
+
+def test_a_store_on_a_read_only_file_system_can_be_read(tmp_path: Path) -> None:
+    """An archived store (a read-only mount): info, export, query and validate read it; the
+    writing commands say why they cannot write, exit 2, without a traceback."""
+    store, archived = tmp_path / "store", tmp_path / "archived"
+    assert _cli("load", "--store", str(store), str(EXAMPLE)).returncode == 0
+    archived.mkdir()
+    with _mounted("--bind", str(store), str(archived)), _mounted("-o", "remount,bind,ro", str(archived)):
+        assert not os.access(archived, os.W_OK) or _cannot_write(archived)
+        at = ["--store", str(archived)]
+        info = _cli("info", *at, "--format", "json")
+        assert info.returncode == 0 and [g["graph"] for g in json.loads(info.stdout)["graphs"]] == [G]
+        assert _cli("export", *at, "--graph", G, "--format", "p21").stdout == \
+            _cli("export", "--store", str(store), "--graph", G, "--format", "p21").stdout != ""
+        query = _cli("query", *at, "SELECT (COUNT(*) AS ?n) WHERE { GRAPH ?g { ?s ?p ?o } }", "--format", "json")
+        assert query.returncode == 0, query.stderr
+        assert _cli("validate", *at).returncode in (0, 1)
+        for write in (["load", str(EXAMPLE)], ["unload", G], ["compact"],
+                      ["link", str(ROOT / "examples" / "shaft_plm_links.csv")]):
+            done = _cli(*write, *at)
+            assert done.returncode == 2 and "Traceback" not in done.stderr
+            assert "read-only file system" in done.stderr, done.stderr
+
+
+def _cannot_write(path: Path) -> bool:
+    try:
+        (path / "probe").write_text("")
+    except OSError as e:
+        return e.errno == errno.EROFS
+    return False
+
+
+def test_an_export_that_cannot_be_written_names_the_output(tmp_path: Path) -> None:
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    store = str(tmp_path / "store")
+    assert _cli("load", "--store", store, str(EXAMPLE)).returncode == 0
+    done = _cli("export", "--store", store, "--format", "nq", "-o", "/dev/full")
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "/dev/full" in done.stderr and "No space left on device" in done.stderr

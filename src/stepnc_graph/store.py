@@ -67,6 +67,7 @@ Update transaction. The store directory is chosen by ``--store DIR``, else
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import gc
 import hashlib
@@ -323,8 +324,23 @@ class _Locks:
 
     @staticmethod
     def try_lock(path: Path, shared: bool) -> int | None:
-        """An open descriptor holding the lock on ``path``, or None if it is held elsewhere."""
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        """An open descriptor holding the lock on ``path``, or None if it is held elsewhere.
+
+        A reader of a store it cannot write (a read-only file system: an archived store; or no
+        write permission) opens the lock file read-only, which ``flock`` allows. On a read-only
+        file system no writer can delete a generation, so when even the lock file is missing
+        a shared lock on the store directory stands for it."""
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            if not shared or e.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+                raise
+            try:
+                fd = os.open(path, os.O_RDONLY)
+            except FileNotFoundError:
+                if e.errno != errno.EROFS:
+                    raise
+                fd = os.open(path.parent, os.O_RDONLY)
         try:
             fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -389,6 +405,9 @@ class GraphStore:
                 self._open_writer(wait, on_wait)
         except OSError as e:
             self.close()
+            if e.errno == errno.EROFS:
+                raise StoreError(f"cannot write to the store in {self.path}: it is on a read-only file system (info, "
+                                 "export, query and validate can still read it)") from None
             raise StoreError(f"cannot open the store in {self.path}: {e.strerror or e}") from None
         except BaseException:
             self.close()

@@ -202,11 +202,35 @@ def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None
     with open_reader(store_path, remote) as store:
         data = export(store, fmt, graph)
     if output is None:
-        sys.stdout.buffer.write(data)
-        sys.stdout.flush()
+        try:
+            sys.stdout.buffer.write(data)
+            sys.stdout.flush()
+        except OSError as e:
+            raise UsageProblem(f"cannot write the export to standard output: {e.strerror or e}") from None
     else:
-        output.write_bytes(data)
+        _write_output(output, data)
         err.print(f"wrote {escape(str(output))} ({len(data)} bytes)")
+
+
+def _write_output(output: Path, data: bytes) -> None:
+    """Write ``data`` to the file ``output``; a failure (a full disk, ``/dev/full``) names the file
+    and the cause, and a file cut short by it is removed: it must not pass for an export."""
+    try:
+        fh = open(output, "wb")
+    except OSError as e:
+        raise UsageProblem(f"-o {output}: cannot write the export: {e.strerror or e}") from None
+    try:
+        with fh:
+            fh.write(data)
+    except OSError as e:
+        cut = f"-o {output}: cannot write the export: {e.strerror or e}"
+        try:
+            if output.is_file():
+                output.unlink()
+                cut += " (the part written was removed)"
+        except OSError:
+            cut += " (the part written is still there)"
+        raise UsageProblem(cut) from None
 
 
 @click.command("unload")
