@@ -159,7 +159,8 @@ def test_the_cli_refuses_with_exit_2_naming_both_graphs(tmp_path: Path) -> None:
 
 def test_unload_removes_what_the_store_records_as_the_programs(store: Store) -> None:
     """A program goes with its derived layer and the link graphs that record it as theirs; a
-    program or a user graph that only looks like one of its link graphs stays, whole."""
+    program or a user graph that only looks like one of its link graphs stays, whole, and so does
+    a graph that claims to be one outside the program's names."""
     sg.load(store, [EXAMPLE], base_iri=A)
     link = add_link(store, A)
     other = A + "/links/other.stp"  # a program an older stepnc-graph let be loaded there
@@ -168,7 +169,10 @@ def test_unload_removes_what_the_store_records_as_the_programs(store: Store) -> 
     record_program(store, other)
     note = A + "/links/notes"
     store.update(f"INSERT DATA {{ GRAPH <{note}> {{ <urn:x> <urn:p> \"a user's graph\" }} }}")
-    kept = {g: n for g, n in snapshot(store).items() if g in (other, note)}
+    claims = "urn:x:claims-to-link-a"  # not where `link` names a link graph of A
+    store.update(f"INSERT DATA {{ GRAPH <{claims}> {{ <{claims}> a <{P21_NS}LinkGraph> ; "
+                 f"<{P21_NS}linkedProgram> <{A}> }} }}")
+    kept = {g: n for g, n in snapshot(store).items() if g in (other, note, claims)}
     assert sg.unload(store, A)
     after = snapshot(store)
     assert not {A, A + "/derived", link} & set(after)

@@ -371,12 +371,13 @@ class GraphLayout:
                                  "another --base-iri")
         for other in sorted(self.programs - {graph}):
             if (name := mine.shared(program_names(other))) is not None:
-                raise GraphNameError(f"<{graph}> cannot be loaded beside the program <{other}>: {_show(name)} would be both "
-                                     f"{_role(name, graph)} and {_role(name, other)}; choose another --base-iri")
+                raise GraphNameError(f"<{graph}> cannot be loaded beside the program <{other}>: {_show(name)} would "
+                                     f"be both {_role(name, graph)} and {_role(name, other)}; choose another "
+                                     "--base-iri")
         for name in sorted(self.names - {graph}):
             if name in mine and self.owner(name) != graph:
-                raise GraphNameError(f"<{graph}> cannot be loaded: <{name}> would be {_role(name, graph)}, but the store "
-                                     f"holds it as {self.role(name)}; choose another --base-iri")
+                raise GraphNameError(f"<{graph}> cannot be loaded: <{name}> would be {_role(name, graph)}, but the "
+                                     f"store holds it as {self.role(name)}; choose another --base-iri")
 
     def refuse_link(self, link: str, program: str) -> None:
         """Refuse to write the link graph ``link`` of ``program`` unless ``program`` is a program graph,
@@ -411,5 +412,8 @@ class GraphLayout:
         return (*([derived] if layers.get(derived) == graph else []), *self.links_of(graph))
 
     def links_of(self, program: str) -> list[str]:
-        """The link graphs that record ``program`` as theirs (none of them a program), sorted."""
-        return sorted(name for name, owner in self.links.items() if owner == program and name not in self.programs)
+        """The link graphs that record ``program`` as theirs, sorted: in its companion namespace,
+        where `link` names them, and none of them a program."""
+        own = companion_names(program)
+        return sorted(name for name, owner in self.links.items()
+                      if owner == program and name in own and name not in self.programs)
