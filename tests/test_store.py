@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
+import errno
+import itertools
 import json
+import os
 import re
+import shutil
+import subprocess
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pyoxigraph as ox
@@ -13,6 +21,7 @@ import pytest
 
 import stepnc_graph as sg
 from stepnc_graph import store as store_module
+from stepnc_graph.handoff import Handoff
 from stepnc_graph.naming import VOCABULARY_GRAPH
 from stepnc_graph.store import GraphStore, StoreBusy, StoreError
 
@@ -778,3 +787,220 @@ def test_large_additions_inside_a_load_go_in_bounded_calls(tmp_path: Path, monke
         rows = s.query("SELECT (COUNT(DISTINCT ?b) AS ?n) WHERE { GRAPH <urn:g> { ?b <urn:j> ?x } "
                        "GRAPH <urn:h> { ?b <urn:i> ?y } }")
         assert int(next(iter(rows))[0].value) == 1
+
+
+# -- a worker that fails, a full disk, a read-only one -----------------------------------------------------
+
+
+class _FailingBulkLoads:
+    """The database of an in-memory store whose bulk loads write, then fail as a full disk does."""
+
+    def __init__(self, db: ox.Store) -> None:
+        self.db = db
+
+    def bulk_load(self, *args: object, **kwargs: object) -> None:
+        self.db.bulk_load(*args, **kwargs)  # type: ignore[arg-type]
+        raise OSError(errno.ENOSPC, "No space left on device (injected)")
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.db, name)
+
+
+def _finishes(work: Callable[[], object], seconds: float = 60) -> BaseException | None:
+    """Run ``work`` on a thread; the exception it raised (None if none). Fails if it is still
+    running after ``seconds``: a deadlock (the thread is left behind, a daemon)."""
+    raised: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            work()
+        except BaseException as exc:  # noqa: BLE001 -- handed to the test
+            raised.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), f"still running after {seconds} s: a deadlock"
+    return raised[0] if raised else None
+
+
+@pytest.mark.parametrize("when", ["after the end of input", "at the first read"])
+def test_a_bulk_load_worker_that_fails_stops_the_load(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                      when: str) -> None:
+    """A worker that fails -- after it took the end of input, which deadlocked the load on a full
+    disk, or while the producer still has chunks to hand over -- stops the producer and the other
+    workers; the load fails with the worker's error, the store is as it was, the next writer writes."""
+    big = generated(tmp_path, 3000)  # several batches, so the producer waits on full hand-offs
+    read = store_module._ChunkStream.readinto
+    reads = itertools.count()
+
+    def failing(self: store_module._ChunkStream, target: object) -> int:
+        n = read(self, target)
+        if (n == 0) if when == "after the end of input" else next(reads) == 0:
+            raise OSError(errno.ENOSPC, "No space left on device (injected)")
+        return n
+
+    with sg.open_store(tmp_path / "s") as s:
+        sg.load(s, [EXAMPLE])
+        before = quads(s)
+        monkeypatch.setattr(store_module._ChunkStream, "readinto", failing)
+        error = _finishes(lambda: sg.load(s, [big]))
+        assert error is not None and "No space left on device (injected)" in str(error)
+        monkeypatch.undo()
+        assert quads(s) == before
+    with sg.open_store(tmp_path / "s") as s:  # the writer's lock is free, the store whole
+        assert quads(s) == before and len(sg.load(s, [big])) == 1
+
+
+def test_an_in_memory_bulk_load_that_fails_after_the_end_of_input_stops(tmp_path: Path) -> None:
+    """Without a derived layer (validation's throw-away store) the program's last chunk is the last
+    item, so the one worker takes the end of input before its bulk load fails."""
+    s = GraphStore(None)
+    db = s._store
+    assert db is not None
+    s._store = _FailingBulkLoads(db)  # type: ignore[assignment]
+    error = _finishes(lambda: sg.load(s, [EXAMPLE], derived=False))
+    assert isinstance(error, OSError) and error.errno == errno.ENOSPC
+    s._store = db
+    assert len(db) == 0  # the new graph was dropped
+
+
+def test_keeping_a_text_on_a_full_disk_fails_without_waiting(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The kept text's compressor fails on its last write (the disk filled up): the load's text
+    is not kept, and nothing waits for an end of input the compressor already took."""
+    import zlib
+
+    from stepnc_graph.kept import KeptTexts
+
+    real = zlib.compressobj
+
+    class Full:
+        def __init__(self, level: int) -> None:
+            self.real = real(level)
+
+        def compress(self, data: bytes) -> bytes:
+            return self.real.compress(data)
+
+        def flush(self) -> bytes:
+            raise OSError(errno.ENOSPC, "No space left on device (injected)")
+
+    monkeypatch.setattr(zlib, "compressobj", Full)
+    writing = KeptTexts(tmp_path / "kept").writing(["urn:g"])
+    writing.write("urn:g", b"<urn:s> <urn:p> <urn:o> .\n")
+    kept: dict[str, object] = {}
+    assert _finishes(lambda: kept.update(writing.finish({"urn:g": 1}))) is None
+    assert kept == {} and list((tmp_path / "kept").iterdir()) == []
+
+
+def test_a_handoff_never_leaves_a_thread_waiting() -> None:
+    """Aborting wakes a producer waiting on a full hand-off; closing wakes idle workers, after
+    they took every item exactly once."""
+    full: Handoff[int] = Handoff(1)
+    assert full.put(1)
+    blocked = threading.Thread(target=lambda: full.put(2))  # waits: the hand-off is full
+    blocked.start()
+    time.sleep(0.05)
+    full.abort()
+    blocked.join(5)
+    assert not blocked.is_alive() and full.get() is None and full.put(3) is False
+
+    work: Handoff[int] = Handoff(2)
+    taken: list[int] = []
+
+    def worker() -> None:
+        while (item := work.get()) is not None:
+            taken.append(item)
+
+    workers = [threading.Thread(target=worker) for _ in range(3)]
+    for t in workers:
+        t.start()
+    for k in range(1000):
+        assert work.put(k)
+    work.close()
+    for t in workers:
+        t.join(5)
+    assert not any(t.is_alive() for t in workers) and sorted(taken) == list(range(1000))
+
+
+@contextmanager
+def _mounted(*args: str) -> Iterator[None]:
+    """``mount ARGS``, unmounted after; the test is skipped where mounting is not permitted."""
+    if shutil.which("mount") is None:
+        pytest.skip("no mount command here: the test needs a real file system of its own")
+    done = subprocess.run(["mount", *args], capture_output=True, text=True)
+    if done.returncode != 0:
+        pytest.skip(f"mount {' '.join(args)} is not permitted here ({done.stderr.strip()}): it needs root")
+    try:
+        yield
+    finally:
+        subprocess.run(["umount", "-l", args[-1]], capture_output=True)
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "stepnc_graph.cli", *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+@pytest.mark.parametrize("free_mb", [1, 3])
+def test_a_full_disk_fails_the_load_cleanly(tmp_path: Path, free_mb: int) -> None:
+    """A real ENOSPC: a small tmpfs holding a store with a program, filled to ``free_mb`` MB (the
+    load deadlocked, holding the writer's lock, with 0.8-4 MB free). Exit 2 naming the store and
+    the cause, the store as before, the next writer not refused."""
+    small = shutil.move(generated(tmp_path, 300), tmp_path / "small.stp")
+    big = generated(tmp_path, 3000)
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    with _mounted("-t", "tmpfs", "-o", "size=64m", "tmpfs", str(disk)):
+        store = str(disk / "store")
+        assert _cli("load", "--store", store, str(small)).returncode == 0
+        before = _cli("export", "--store", store, "--format", "nq").stdout
+        free = shutil.disk_usage(disk).free - free_mb * (1 << 20)
+        with open(disk / "filler", "wb") as fh:
+            fh.write(b"\0" * free)
+        done = _cli("load", "--store", store, str(big))
+        assert done.returncode == 2 and "Traceback" not in done.stderr
+        assert f"store in {store}" in done.stderr and "No space left on device" in done.stderr
+        assert _cli("export", "--store", store, "--format", "nq").stdout == before
+        with sg.open_store(store) as s:  # not StoreBusy: the failed load let go of the lock
+            assert [g.graph for g in sg.info(s)] == [sg.info(s)[0].graph] and s.count() > 0
+
+
+def test_a_store_on_a_read_only_file_system_can_be_read(tmp_path: Path) -> None:
+    """An archived store (a read-only mount): info, export, query and validate read it; the
+    writing commands say why they cannot write, exit 2, without a traceback."""
+    store, archived = tmp_path / "store", tmp_path / "archived"
+    assert _cli("load", "--store", str(store), str(EXAMPLE)).returncode == 0
+    archived.mkdir()
+    with _mounted("--bind", str(store), str(archived)), _mounted("-o", "remount,bind,ro", str(archived)):
+        assert not os.access(archived, os.W_OK) or _cannot_write(archived)
+        at = ["--store", str(archived)]
+        info = _cli("info", *at, "--format", "json")
+        assert info.returncode == 0 and [g["graph"] for g in json.loads(info.stdout)["graphs"]] == [G]
+        assert _cli("export", *at, "--graph", G, "--format", "p21").stdout == \
+            _cli("export", "--store", str(store), "--graph", G, "--format", "p21").stdout != ""
+        query = _cli("query", *at, "SELECT (COUNT(*) AS ?n) WHERE { GRAPH ?g { ?s ?p ?o } }", "--format", "json")
+        assert query.returncode == 0, query.stderr
+        assert _cli("validate", *at).returncode in (0, 1)
+        for write in (["load", str(EXAMPLE)], ["unload", G], ["compact"],
+                      ["link", str(ROOT / "examples" / "shaft_plm_links.csv")]):
+            done = _cli(*write, *at)
+            assert done.returncode == 2 and "Traceback" not in done.stderr
+            assert "read-only file system" in done.stderr, done.stderr
+
+
+def _cannot_write(path: Path) -> bool:
+    try:
+        (path / "probe").write_text("")
+    except OSError as e:
+        return e.errno == errno.EROFS
+    return False
+
+
+def test_an_export_that_cannot_be_written_names_the_output(tmp_path: Path) -> None:
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    store = str(tmp_path / "store")
+    assert _cli("load", "--store", store, str(EXAMPLE)).returncode == 0
+    done = _cli("export", "--store", store, "--format", "nq", "-o", "/dev/full")
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "/dev/full" in done.stderr and "No space left on device" in done.stderr

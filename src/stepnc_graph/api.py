@@ -16,10 +16,10 @@ from pathlib import Path
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
-from stepnc_graph.loader import LoadResult, Progress, load_source
-from stepnc_graph.naming import P21_NS, derived_graph_iri
+from stepnc_graph.loader import LoadResult, Progress, load_source, refuse_graph_name_clashes
+from stepnc_graph.naming import P21_NS, GraphNameError
 from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
-from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path
+from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path, graph_layout
 
 if TYPE_CHECKING:
     from stepnc_graph.export import export
@@ -32,8 +32,8 @@ if TYPE_CHECKING:
 _LAZY = {"export": "stepnc_graph.export", "link": "stepnc_graph.link", "LinkResult": "stepnc_graph.link",
          "query": "stepnc_graph.query", "QueryResult": "stepnc_graph.query", "validate": "stepnc_graph.validate"}
 
-__all__ = ["Compacted", "GraphInfo", "LinkResult", "LoadResult", "QueryResult", "SourceError", "StoreBusy", "StoreError",
-           "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
+__all__ = ["Compacted", "GraphInfo", "GraphNameError", "LinkResult", "LoadResult", "QueryResult", "SourceError",
+           "StoreBusy", "StoreError", "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
 
 
 def __getattr__(name: str) -> Any:
@@ -76,6 +76,7 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
     (Part 21 files: no ``p21:id``/``p21:line`` triples, the lines in ``LoadResult.lines``).
     """
     sources = plan_sources(list(paths), base_iri)
+    refuse_graph_name_clashes(store, [s.graph for s in sources])
     if not replace:
         refuse_replacing_other_files(store, sources)
     return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions)
@@ -83,12 +84,14 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
 
 
 def unload(store: Store, graph: str, compact: bool = False) -> bool:
-    """Remove a file's graph with its derived layer and its link graphs (:mod:`stepnc_graph.link`),
-    atomically; False if there was none. Beside other programs the store compacts once enough was
-    deleted (:data:`~stepnc_graph.store.COMPACT_AT`); ``compact`` gives the space back now."""
-    from stepnc_graph.link import program_link_graphs
-
-    companions = (derived_graph_iri(graph), *program_link_graphs(store, graph))
+    """Remove a program's graph with its derived layer and its link graphs (:mod:`stepnc_graph.link`),
+    or a link graph alone, atomically; False if there was none. Which graphs are the program's
+    comes from the store's records (:meth:`~stepnc_graph.naming.GraphLayout.unloaded_with`), so
+    another program is never removed with it; the vocabulary graph and a derived layer on its
+    own raise :class:`~stepnc_graph.naming.GraphNameError`. Beside other programs the store
+    compacts once enough was deleted (:data:`~stepnc_graph.store.COMPACT_AT`); ``compact`` gives
+    the space back now."""
+    companions = graph_layout(store).unloaded_with(graph)
     return store.remove_graph(graph, companions=companions, compact=compact)
 
 
@@ -136,9 +139,8 @@ def _int(value: str | None) -> int | None:
 
 def program_graphs(store: Store) -> list[str]:
     """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary,
-    derived layers or other graphs a user added."""
-    rows = store.query(f"SELECT DISTINCT ?g WHERE {{ GRAPH ?g {{ ?g a <{P21_NS}ExchangeStructure> }} }}")
-    return sorted(row[0].value for row in rows)
+    derived layers, link graphs or other graphs a user added."""
+    return sorted(graph_layout(store).programs)
 
 
 def info(store: Store) -> list[GraphInfo]:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import re
 import threading
 import uuid
@@ -36,6 +35,8 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
+
+from stepnc_graph.handoff import Handoff
 
 INDEX = "index.json"
 #: zlib's level (see the module docstring)
@@ -139,7 +140,7 @@ class KeptWriting:
 
     def __init__(self, directory: Path, names: Sequence[str]) -> None:
         self._paths = {name: directory / f"{uuid.uuid4().hex}.nt.z" for name in names}
-        self._work: queue.Queue[tuple[str, bytes] | None] = queue.Queue(maxsize=2)  # it keeps up
+        self._work: Handoff[tuple[str, bytes]] = Handoff(2)  # it keeps up
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -152,7 +153,7 @@ class KeptWriting:
     def _run(self) -> None:
         files: dict[str, tuple[BinaryIO, zlib._Compress]] = {}
         try:
-            while (item := self._work.get()) is not None:
+            while (item := self._work.get()) is not None:  # None: closed by _stop, or aborted
                 graph, data = item
                 if graph not in files:
                     files[graph] = (open(self._paths[graph], "wb"), zlib.compressobj(LEVEL))
@@ -162,11 +163,13 @@ class KeptWriting:
                 out.write(compressor.flush())
         except BaseException as exc:  # noqa: BLE001 -- finish() then keeps nothing
             self._error = exc
-            while self._work.get() is not None:  # the producer never blocks
-                pass
+            self._work.abort()  # the producer's writes return at once (a full disk, say)
         finally:
             for out, _ in files.values():
-                out.close()
+                try:
+                    out.close()  # writes what is buffered: a full disk fails here too
+                except OSError as exc:
+                    self._error = self._error or exc
 
     def finish(self, lines: dict[str, int]) -> dict[str, KeptText]:
         """Wait for the compression; the kept texts of the graphs that got lines (``lines``: how
@@ -186,9 +189,8 @@ class KeptWriting:
             path.unlink(missing_ok=True)
 
     def _stop(self) -> None:
-        if self._thread.is_alive():
-            self._work.put(None)
-            self._thread.join()
+        self._work.close()
+        self._thread.join()
 
 
 def read_without_blank_nodes(path: Path, out: BinaryIO) -> OldLines:

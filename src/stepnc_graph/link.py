@@ -50,10 +50,9 @@ from stepnc_graph.naming import (
     alias_iri,
     instance_prefix,
     link_graph_iri,
-    link_graphs_prefix,
 )
 from stepnc_graph.sources import SourceError, check_iri
-from stepnc_graph.store import GraphStore, Store
+from stepnc_graph.store import GraphStore, Store, graph_layout
 
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
@@ -285,9 +284,9 @@ class ProgramIndex:
 
 
 def program_link_graphs(store: Store, graph: str) -> list[str]:
-    """The link graphs of a program graph (what unloading it removes with it)."""
-    prefix = link_graphs_prefix(graph)
-    return sorted(g for g in store.graphs() if g.startswith(prefix))
+    """The link graphs of a program graph (what unloading it removes with it): those that record
+    it as their program (``p21:linkedProgram``), never a graph whose name only looks like one."""
+    return graph_layout(store).links_of(graph)
 
 
 def _only_program(store: Store) -> str:
@@ -308,7 +307,9 @@ def link(store: GraphStore, mapping: str | Path, graph: str | None = None, *, al
     Raises :class:`LinkError` when the mapping cannot be read or (unless
     ``allow_unknown``) a row matches no single entity -- the store is then unchanged --
     and :class:`~stepnc_graph.sources.SourceError` for an unknown graph or a link
-    graph that holds another mapping file (unless ``replace``).
+    graph that holds another mapping file (unless ``replace``);
+    :class:`~stepnc_graph.naming.GraphNameError` when ``graph`` is not a program, or the link
+    graph's name is another graph's (:meth:`~stepnc_graph.naming.GraphLayout.refuse_link`).
     """
     path = Path(mapping)
     raw = path.read_bytes()
@@ -316,6 +317,7 @@ def link(store: GraphStore, mapping: str | Path, graph: str | None = None, *, al
     if not store.has_graph(graph):
         raise SourceError(f"no graph {graph} in the store (see `stepnc-graph info`)")
     target = link_graph_iri(graph, path.name)
+    graph_layout(store).refuse_link(target, graph)
     _refuse_other_mapping(store, target, path, replace)
     rows, problems = read_mapping(path)
     total = len(rows) + len(problems)

@@ -10,7 +10,7 @@ import hashlib
 import os
 import re
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -26,7 +26,6 @@ from stepnc_graph.mapping.plan import P21_DUPLICATE, P21_LINE, P21_RAW_TEXT, iso
 from stepnc_graph.naming import (
     P21_NS,
     TOOL_IRI,
-    VOCABULARY_GRAPH,
     alias_iri,
     default_graph_iri,
     derived_graph_iri,
@@ -38,8 +37,8 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
-from stepnc_graph.sources import Source, SourceError
-from stepnc_graph.store import Chunk, Companion, GraphStore, Shadow, Store
+from stepnc_graph.sources import Source
+from stepnc_graph.store import Chunk, Companion, GraphStore, Shadow, Store, graph_layout
 from stepnc_graph.vocabulary import ensure_vocabulary
 
 if TYPE_CHECKING:
@@ -380,7 +379,7 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
 def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
     """Write a prepared load: the file's graph, its derived layer (``<graph>/derived``) and,
     when missing or stale, the store's vocabulary graph, in one atomic load."""
-    _check_graph_name(store, job.graph)
+    refuse_graph_name_clashes(store, [job.graph])
     extra: list[Diagnostic] = []
 
     def before_commit(target: Callable[[str], str]) -> None:
@@ -404,9 +403,9 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
     return job.result
 
 
-def _check_graph_name(store: Store, graph: str) -> None:
-    """Refuse graph IRIs that would overwrite the vocabulary or another file's derived layer."""
-    if graph == VOCABULARY_GRAPH or graph.endswith("/derived") and any(
-            derived_graph_iri(g) == graph for g in store.graphs()):
-        raise SourceError(f"{graph} is reserved (the vocabulary graph or a loaded file's derived layer); "
-                         f"choose another --base-iri")
+def refuse_graph_name_clashes(store: Store, graphs: Sequence[str]) -> None:
+    """:class:`~stepnc_graph.naming.GraphNameError` unless programs can be loaded as the graphs
+    ``graphs`` (one command's) beside what the store holds: no name of one may be reserved,
+    another program's or its companions', or held by a graph that is not its own
+    (:meth:`~stepnc_graph.naming.GraphLayout.refuse_programs`, from the store's records)."""
+    graph_layout(store).refuse_programs(graphs)

@@ -32,11 +32,21 @@ Scheme (documented in ``ontology/README.md``, stable for good):
   a link for PLM systems that survives renumbering of the instance ids;
 * the links a mapping file attaches to a program's instances live in their own
   named graph ``<base IRI>/links/<mapping file name>`` (percent-encoded).
+
+**Graph names a program reserves.** A program graph ``G`` owns the names of its companion graphs:
+``G/derived``, every name under ``G/derived/`` and every name under ``G/links/`` (its *companion
+namespace*, :func:`companion_names`). Two programs whose names would share one of these (``G`` and
+``G/derived``, ``G`` and ``G/links/x``, ``G`` and ``G/``: both derived layers are ``G/derived``) cannot
+both be in a store, and no program, link graph or user graph may take the vocabulary graph or a
+name under :data:`STAGING` (the graphs a running write stages its data in). :class:`GraphLayout`
+applies these rules to a store, knowing which graph is what from the store's own records.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
@@ -60,6 +70,9 @@ DATA_BASE = "https://w3id.org/stepnc-graph/data/"
 #: The named graph holding the vocabulary (ontology/*.ttl) in a store.
 VOCABULARY_GRAPH = "https://w3id.org/stepnc-graph/iso14649"
 TOOL_IRI = "https://w3id.org/stepnc-graph/tool/"
+#: What the names of staging graphs start with: a write stages its data there and moves it into
+#: place (an in-memory replacement, any load into a remote store). No other graph may be named so.
+STAGING = "urn:stepnc-graph:staging:"
 #: The IRI documents use to name the shipped JSON-LD context (``ontology/context.jsonld``).
 #: stepnc-graph never fetches it: its reader serves it from the installed file.
 CONTEXT_IRI = "https://w3id.org/stepnc-graph/context.jsonld"
@@ -197,3 +210,210 @@ def link_graphs_prefix(graph_iri: str) -> str:
 def alias_iri(graph_iri: str, scope: str, label: str) -> str:
     """The alias of the one instance of ``scope`` whose its_id is ``label``."""
     return f"{instance_prefix(graph_iri)}id/{scope.lower()}/{quote(label, safe='')}"
+
+
+# -- which graph names belong to whom ---------------------------------------------------------------
+
+
+class GraphNameError(ValueError):
+    """A graph name that would take the place of another graph of the store, or a reserved one."""
+
+
+@dataclass(frozen=True)
+class Names:
+    """A set of graph names: some names, and every name that starts with one of ``prefixes``."""
+
+    exact: frozenset[str] = frozenset()
+    prefixes: tuple[str, ...] = ()
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and (name in self.exact or name.startswith(self.prefixes))
+
+    def shared(self, other: "Names") -> str | None:
+        """A name both sets hold (``prefix...`` for the names under a prefix of both), or None."""
+        for name in sorted(self.exact):
+            if name in other:
+                return name
+        for name in sorted(other.exact):
+            if name in self:
+                return name
+        for a in self.prefixes:
+            for b in other.prefixes:
+                if a.startswith(b) or b.startswith(a):
+                    return max(a, b, key=len) + "..."
+        return None
+
+
+def _show(name: str) -> str:
+    """A name of :meth:`Names.shared` for a message."""
+    return name if name.endswith("...") else f"<{name}>"
+
+
+#: Names no graph of a user, a load or a link may take: the vocabulary graph and staging graphs.
+RESERVED = Names(frozenset({VOCABULARY_GRAPH}), (STAGING,))
+
+
+def companion_names(graph_iri: str) -> Names:
+    """The companion namespace of the program graph ``graph_iri``: its derived layer, the names
+    under it, and the names of its link graphs (see the module docstring)."""
+    derived = derived_graph_iri(graph_iri)
+    return Names(frozenset({derived}), (derived + "/", link_graphs_prefix(graph_iri)))
+
+
+def program_names(graph_iri: str) -> Names:
+    """The names a program graph takes in a store: its own and its companion namespace."""
+    companions = companion_names(graph_iri)
+    return Names(companions.exact | {graph_iri}, companions.prefixes)
+
+
+def refuse_reserved(graph_iri: str) -> None:
+    """:class:`GraphNameError` for the vocabulary graph and staging names (see :data:`RESERVED`)."""
+    if graph_iri == VOCABULARY_GRAPH:
+        raise GraphNameError(f"<{graph_iri}> is reserved for the vocabulary graph, which stepnc-graph writes "
+                             "itself: it is not a program or a link graph")
+    if graph_iri.startswith(STAGING):
+        raise GraphNameError(f"<{graph_iri}> is reserved: graphs under {STAGING} stage the data of a running write")
+
+
+def refuse_strangers(graph_iri: str, companions: Iterable[str]) -> None:
+    """:class:`GraphNameError` unless ``graph_iri`` is not reserved and each of ``companions`` lies in
+    its companion namespace: what a store checks before it writes or removes them together."""
+    refuse_reserved(graph_iri)
+    own = companion_names(graph_iri)
+    for name in companions:
+        if name not in own:
+            raise GraphNameError(f"<{name}> is not a companion graph of <{graph_iri}> (its derived layer or one of "
+                                 "its link graphs); it is not written or removed with it")
+
+
+def _role(name: str, program: str) -> str:
+    """What ``name`` is, or would be, for the program graph ``program`` (inside its names)."""
+    derived = derived_graph_iri(program)
+    if name == program:
+        return f"the program graph <{program}>"
+    if name == derived:
+        return f"the derived layer of <{program}>"
+    if name.startswith(derived + "/"):
+        return f"a name under the derived layer of <{program}>"
+    return f"the name of a link graph of <{program}>"
+
+
+@dataclass(frozen=True)
+class GraphLayout:
+    """What each named graph of a store is, from the store's own records: a program graph says
+    ``<G> a p21:ExchangeStructure`` in itself, a link graph ``<L> a p21:LinkGraph ;
+    p21:linkedProgram <G>``; a program's derived layer is the graph its name gives, unless that
+    graph records itself as something else. Never from a name's shape alone: a program may be
+    called ``.../derived`` or ``.../links/x`` when no other program claims that name.
+
+    The rules (see the module docstring): the names of two programs (:func:`program_names`) never
+    meet; a program's companion namespace holds only its own derived layer and link graphs; a
+    link graph lies in its program's namespace and in no other's; nothing takes a
+    :data:`RESERVED` name. Each check raises :class:`GraphNameError` naming both graphs.
+    """
+
+    #: every named graph but staging ones
+    names: frozenset[str]
+    #: the program graphs
+    programs: frozenset[str]
+    #: link graph -> the program it links
+    links: Mapping[str, str] = field(default_factory=dict)
+
+    @cached_property
+    def derived_layers(self) -> dict[str, str]:
+        """derived layer -> its program, for the programs' derived layers in the store."""
+        found = {derived_graph_iri(p): p for p in self.programs}
+        return {d: p for d, p in found.items() if d in self.names and d not in self.programs and d not in self.links}
+
+    def listed(self) -> list[str]:
+        """The graphs a user names (programs, link graphs, graphs users added): not the vocabulary,
+        nor a program's derived layer."""
+        return sorted(self.names - {VOCABULARY_GRAPH} - set(self.derived_layers))
+
+    def owner(self, name: str) -> str | None:
+        """The program ``name`` belongs to (itself for a program), or None."""
+        if name in self.programs:
+            return name
+        return self.links.get(name) or self.derived_layers.get(name)
+
+    def role(self, name: str) -> str:
+        """What the graph ``name`` of the store is, for messages."""
+        if name == VOCABULARY_GRAPH:
+            return "the vocabulary graph"
+        if name in self.programs:
+            return f"the program graph <{name}>"
+        if name in self.links:
+            return f"a link graph of <{self.links[name]}>"
+        if (program := self.derived_layers.get(name)) is not None:
+            return f"the derived layer of <{program}>"
+        return f"the graph <{name}> (no load or link wrote it)"
+
+    def refuse_programs(self, graphs: Sequence[str]) -> None:
+        """Refuse to load the program graphs ``graphs`` (one command's) when a name of one of them
+        would take the place of a graph of the store or of another of them."""
+        for k, graph in enumerate(graphs):
+            self.refuse_program(graph)
+            for other in graphs[k + 1:]:
+                if other != graph and (name := program_names(graph).shared(program_names(other))) is not None:
+                    raise GraphNameError(f"<{graph}> and <{other}> cannot both be loaded: {_show(name)} would be both "
+                                         f"{_role(name, graph)} and {_role(name, other)}; give each its own --base-iri")
+
+    def refuse_program(self, graph: str) -> None:
+        """Refuse to load (or replace) the program graph ``graph`` when one of its names is reserved,
+        is another program's, or is held by a graph that does not belong to it."""
+        refuse_reserved(graph)
+        mine = program_names(graph)
+        if (name := mine.shared(RESERVED)) is not None:
+            raise GraphNameError(f"<{graph}> cannot be loaded: {_show(name)} would be {_role(name, graph)}, a "
+                                 "reserved name")
+        if graph in self.names and self.owner(graph) not in (None, graph):
+            raise GraphNameError(f"<{graph}> cannot be loaded: the name is reserved for {self.role(graph)}; choose "
+                                 "another --base-iri")
+        for other in sorted(self.programs - {graph}):
+            if (name := mine.shared(program_names(other))) is not None:
+                raise GraphNameError(f"<{graph}> cannot be loaded beside the program <{other}>: {_show(name)} would "
+                                     f"be both {_role(name, graph)} and {_role(name, other)}; choose another "
+                                     "--base-iri")
+        for name in sorted(self.names - {graph}):
+            if name in mine and self.owner(name) != graph:
+                raise GraphNameError(f"<{graph}> cannot be loaded: <{name}> would be {_role(name, graph)}, but the "
+                                     f"store holds it as {self.role(name)}; choose another --base-iri")
+
+    def refuse_link(self, link: str, program: str) -> None:
+        """Refuse to write the link graph ``link`` of ``program`` unless ``program`` is a program graph,
+        ``link`` lies in its companion namespace and in no other program's, and no graph but a link
+        graph of ``program`` holds that name."""
+        if program not in self.programs:
+            raise GraphNameError(f"<{program}> is not a program graph (it is {self.role(program)}); links attach to "
+                                 "a loaded program's instances (see `stepnc-graph info`)")
+        if link not in companion_names(program):
+            raise GraphNameError(f"<{link}> is not a link graph's name of <{program}>")
+        for other in sorted(self.programs - {program}):
+            if link in program_names(other):
+                raise GraphNameError(f"the link graph <{link}> of <{program}> would be {_role(link, other)}; rename "
+                                     "the mapping file")
+        if link in self.names and self.links.get(link) != program:
+            raise GraphNameError(f"the link graph <{link}> of <{program}> would replace {self.role(link)}; rename the "
+                                 "mapping file")
+
+    def unloaded_with(self, graph: str) -> tuple[str, ...]:
+        """The graphs an unload of ``graph`` removes with it: a program's derived layer and link
+        graphs (by the store's records, never another program's graph); nothing for a link graph or
+        a graph a user added. Refuses the reserved graphs and a program's derived layer, which go
+        with their program."""
+        refuse_reserved(graph)
+        layers = self.derived_layers
+        if graph in layers:
+            raise GraphNameError(f"<{graph}> is the derived layer of <{layers[graph]}>: it goes with its program "
+                                 f"(unload <{layers[graph]}>)")
+        if graph not in self.programs:
+            return ()
+        derived = derived_graph_iri(graph)
+        return (*([derived] if layers.get(derived) == graph else []), *self.links_of(graph))
+
+    def links_of(self, program: str) -> list[str]:
+        """The link graphs that record ``program`` as theirs, sorted: in its companion namespace,
+        where `link` names them, and none of them a program."""
+        own = companion_names(program)
+        return sorted(name for name, owner in self.links.items()
+                      if owner == program and name in own and name not in self.programs)

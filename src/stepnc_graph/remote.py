@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import base64
 import os
+import re
 import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -56,9 +57,9 @@ from urllib.parse import urlsplit, urlunsplit
 import pyoxigraph as ox
 
 from stepnc_graph.bindings import bind_in_groups
-from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
+from stepnc_graph.naming import STAGING, refuse_strangers
 from stepnc_graph.outbound import outbound_keyword
-from stepnc_graph.store import STAGING, Chunk, Companion, Shadow, StoreError
+from stepnc_graph.store import Chunk, Companion, Shadow, StoreError, graph_layout
 
 ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
 TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
@@ -75,6 +76,8 @@ CONNECT_TIMEOUT = 10.0
 BATCH_BYTES = 8 << 20
 #: a staging graph older than this was left by an interrupted load and is dropped
 STALE_STAGING_SECONDS = 24 * 3600
+#: the name of a staging graph of :meth:`RemoteStore.replace_graph`: its time, then a random id
+_STAGING_NAME = re.compile(re.escape(STAGING) + r"([0-9]+):[0-9a-f]{32}")
 _TRANSIENT = {429, 502, 503, 504}
 _RESULTS_JSON = "application/sparql-results+json"
 _NTRIPLES = "application/n-triples"
@@ -276,7 +279,9 @@ class RemoteStore:
     def replace_graph(self, graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None:
-        """Upload into staging graphs, then swap them in with one SPARQL Update request."""
+        """Upload into staging graphs, then swap them in with one SPARQL Update request. Refuses
+        what :meth:`GraphStore.replace_graph` refuses."""
+        refuse_strangers(graph, companions)
         self._drop_stale_staging()
         stamp = int(time.time())
         staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
@@ -303,12 +308,16 @@ class RemoteStore:
             pass
 
     def _drop_stale_staging(self) -> None:
+        """Drop the staging graphs an interrupted load left (named as :data:`_STAGING_NAME`, older
+        than :data:`STALE_STAGING_SECONDS`). Never a graph that records itself as a program or a
+        link graph: no load takes a staging name now (:data:`~stepnc_graph.naming.RESERVED`), but
+        an older stepnc-graph let a program be loaded under one."""
         limit = time.time() - STALE_STAGING_SECONDS
-        stale = []
-        for g in self._all_graphs():
-            stamp = g[len(STAGING):].split(":", 1)[0] if g.startswith(STAGING) else ""
-            if stamp.isdigit() and int(stamp) < limit:
-                stale.append(g)
+        stale = [g for g in self._all_graphs()
+                 if (m := _STAGING_NAME.fullmatch(g)) is not None and int(m.group(1)) < limit]
+        if stale:
+            recorded = graph_layout(self)  # its records cover staging names too
+            stale = [g for g in stale if g not in recorded.programs and g not in recorded.links]
         if stale:
             self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in stale))
 
@@ -321,7 +330,8 @@ class RemoteStore:
 
     def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
         """Drop ``graph`` and its ``companions``; the endpoint manages its own storage, so
-        ``compact`` asks nothing of it."""
+        ``compact`` asks nothing of it. Refuses what :meth:`replace_graph` refuses."""
+        refuse_strangers(graph, companions)
         if not self.has_graph(graph):
             return False
         self.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in (graph, *companions)))
@@ -382,9 +392,8 @@ class RemoteStore:
 
     def graphs(self) -> list[str]:
         """The loaded files' graphs (and graphs `link` or users added): not the vocabulary graph or a
-        file's derived layer, as :meth:`GraphStore.graphs`."""
-        names = set(self.all_graphs()) - {VOCABULARY_GRAPH}
-        return sorted(names - {derived_graph_iri(g) for g in names})
+        program's derived layer, as :meth:`GraphStore.graphs`."""
+        return graph_layout(self).listed()
 
     def has_graph(self, graph: str) -> bool:
         return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))

@@ -67,6 +67,7 @@ Update transaction. The store directory is chosen by ``--store DIR``, else
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import gc
 import hashlib
@@ -90,14 +91,14 @@ from typing import Any, BinaryIO, Protocol
 
 import pyoxigraph as ox
 
+from stepnc_graph.handoff import Handoff
 from stepnc_graph.kept import BLANK_OBJECT, KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
-from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
+from stepnc_graph.naming import P21_NS, STAGING, VOCABULARY_GRAPH, GraphLayout, refuse_strangers
 
 STORE_ENV = "STEPNC_GRAPH_STORE"
 DEFAULT_STORE = ".stepnc-graph"
 FORMAT_VERSION = 2
 MARKER = "stepnc-graph-store.json"
-STAGING = "urn:stepnc-graph:staging:"
 LOAD_THREADS = max(1, min(4, os.cpu_count() or 1))
 #: N-Triples characters per bulk_load call (about 120k triples). Oxigraph's bulk
 #: loader and RocksDB hold memory in proportion to one call; 12M characters
@@ -229,6 +230,8 @@ class Store(Protocol):
 
     def graphs(self) -> list[str]: ...
 
+    def all_graphs(self) -> list[str]: ...
+
     def has_graph(self, graph: str) -> bool: ...
 
     def query(self, sparql: str, **kwargs: Any) -> Any: ...
@@ -259,6 +262,11 @@ class Writer:
     def __str__(self) -> str:
         who = f"pid {self.pid}" if self.pid else "another process"
         return f"{who}{': ' + self.command if self.command else ''}{', since ' + self.since if self.since else ''}"
+
+
+class StoreWriteError(StoreError, OSError):
+    """A write that the store's own files refused (a full disk, a read-only one), rolled back: a
+    :class:`StoreError` that names the store, and still the ``OSError`` it was (``errno``)."""
 
 
 class StoreBusy(StoreError):
@@ -316,8 +324,23 @@ class _Locks:
 
     @staticmethod
     def try_lock(path: Path, shared: bool) -> int | None:
-        """An open descriptor holding the lock on ``path``, or None if it is held elsewhere."""
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        """An open descriptor holding the lock on ``path``, or None if it is held elsewhere.
+
+        A reader of a store it cannot write (a read-only file system: an archived store; or no
+        write permission) opens the lock file read-only, which ``flock`` allows. On a read-only
+        file system no writer can delete a generation, so when even the lock file is missing
+        a shared lock on the store directory stands for it."""
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            if not shared or e.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+                raise
+            try:
+                fd = os.open(path, os.O_RDONLY)
+            except FileNotFoundError:
+                if e.errno != errno.EROFS:
+                    raise
+                fd = os.open(path.parent, os.O_RDONLY)
         try:
             fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -382,6 +405,9 @@ class GraphStore:
                 self._open_writer(wait, on_wait)
         except OSError as e:
             self.close()
+            if e.errno == errno.EROFS:
+                raise StoreError(f"cannot write to the store in {self.path}: it is on a read-only file system (info, "
+                                 "export, query and validate can still read it)") from None
             raise StoreError(f"cannot open the store in {self.path}: {e.strerror or e}") from None
         except BaseException:
             self.close()
@@ -532,10 +558,33 @@ class GraphStore:
         if self.readonly:
             raise StoreError(f"the store in {self.path} was opened read-only")
         dirty = self._file("work.dirty")
-        if not dirty.exists():
-            dirty.write_text("")
-            _fsync_dir(self.path)
+        try:
+            if not dirty.exists():
+                dirty.write_text("")
+                _fsync_dir(self.path)
+        except OSError as e:
+            raise self._disk_error(e) or e from None
         self._since = self._current()
+
+    def _disk_error(self, exc: BaseException) -> StoreWriteError | None:
+        """A write's error as a :class:`StoreWriteError` naming the store, when the store's own
+        files refused it (a full disk, a read-only one: Oxigraph's errors name no file, Python's a
+        file in the store); None for any other error, such as an input file that cannot be read."""
+        if not isinstance(exc, OSError) or isinstance(exc, StoreWriteError) or self.path is None:
+            return None
+        name = exc.filename
+        if name is not None and not Path(os.path.abspath(name)).is_relative_to(Path(os.path.abspath(self.path))):
+            return None
+        reason = f"{exc.strerror} ({name})" if exc.strerror and name else exc.strerror or str(exc)
+        error = StoreWriteError(f"cannot write to the store in {self.path}: {reason}; the store is as it was before")
+        error.errno = exc.errno
+        return error
+
+    def _failed(self, exc: BaseException) -> None:
+        """Roll a failed write back and raise its error (see :meth:`_disk_error`)."""
+        self._rollback()
+        if (error := self._disk_error(exc)) is not None:
+            raise error from exc
 
     def _publish(self) -> None:
         """Checkpoint ``work/`` as the next generation and name it in ``CURRENT``."""
@@ -748,7 +797,11 @@ class GraphStore:
         the load is committed; ``target(name)`` gives the graph to write now for
         ``graph`` or a companion (a staging graph, for an in-memory
         replacement). An exception from it (or from ``chunks``) rolls back.
+        A reserved name, or a companion outside ``graph``'s companion namespace, is refused
+        (:func:`~stepnc_graph.naming.refuse_strangers`); which program may take which name
+        is for the writing commands to check (:class:`~stepnc_graph.naming.GraphLayout`).
         """
+        refuse_strangers(graph, companions)
         if self.path is None:
             self._replace_in_memory(graph, chunks, before_commit, companions)
             return
@@ -766,8 +819,8 @@ class GraphStore:
                 self._remove(how, present)
                 self._load_kept(graph, chunks, before_commit, [graph, *companions])
             self._commit()
-        except BaseException:
-            self._rollback()
+        except BaseException as exc:
+            self._failed(exc)
             raise
 
     def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
@@ -775,7 +828,9 @@ class GraphStore:
 
         Deleted quads keep their disk space until the database is compacted: beside other
         programs that happens once enough was deleted (:meth:`_settle`), or now with
-        ``compact``. Removed by a rebuild, the space comes back at once."""
+        ``compact``. Removed by a rebuild, the space comes back at once. Refuses what
+        :meth:`replace_graph` refuses."""
+        refuse_strangers(graph, companions)
         if not self._db.contains_named_graph(ox.NamedNode(graph)):
             return False
         if self.path is None:
@@ -792,8 +847,8 @@ class GraphStore:
             if how == "delete":
                 self._settle(removed, held - removed, compact)
             self._commit()
-        except BaseException:
-            self._rollback()
+        except BaseException as exc:
+            self._failed(exc)
             raise
         return True
 
@@ -1263,33 +1318,36 @@ class GraphStore:
         in_memory = self.path is None if in_memory is None else in_memory
         threads_n = 1 if in_memory else LOAD_THREADS  # see MEMORY_BATCH_CHARS
         # the chunks encoded once (here, also for the tee): the main graph's as bytes, a
-        # companion's as (its graph, bytes)
-        work: queue.Queue[bytes | tuple[str, bytes] | None] = queue.Queue(maxsize=2 * threads_n)
+        # companion's as (its graph, bytes). The first error of any thread aborts the hand-off,
+        # which stops the producer and every worker (see stepnc_graph.handoff).
+        work: Handoff[bytes | tuple[str, bytes]] = Handoff(2 * threads_n)
         errors: list[BaseException] = []
         main = ox.NamedNode(graph)
-        finished = threading.Event()
         # No local name holds the database: a failure's traceback keeps this frame
         # alive, and the rollback must be able to close the database.
 
-        def pull(budget: int, large: list[bytes | tuple[str, bytes]]) -> Iterator[bytes]:
-            """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth;
-            a chunk too large for the streaming reader, or a companion's, ends the call and
-            goes to ``large``."""
-            used = 0
-            while used < budget:
-                item = work.get()
-                if item is None:
-                    finished.set()
-                    return
-                if type(item) is not bytes or len(item) > DIRECT_CHARS:
-                    large.append(item)
-                    return
-                used += len(item)
-                yield item
-
         def worker() -> None:
+            ended = False
+
+            def pull(budget: int, large: list[bytes | tuple[str, bytes]]) -> Iterator[bytes]:
+                """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth;
+                a chunk too large for the streaming reader, or a companion's, ends the call and
+                goes to ``large``."""
+                nonlocal ended
+                used = 0
+                while used < budget:
+                    item = work.get()
+                    if item is None:
+                        ended = True
+                        return
+                    if type(item) is not bytes or len(item) > DIRECT_CHARS:
+                        large.append(item)
+                        return
+                    used += len(item)
+                    yield item
+
             try:
-                while not finished.is_set():
+                while not ended:
                     large: list[bytes | tuple[str, bytes]] = []
                     if in_memory:
                         data = b"".join(pull(MEMORY_BATCH_CHARS, large))
@@ -1302,30 +1360,30 @@ class GraphStore:
                         into, data = ((ox.NamedNode(target(item[0])), item[1]) if isinstance(item, tuple)
                                       else (main, item))
                         self._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=into, lenient=True)
-            except BaseException as exc:  # noqa: BLE001 -- handed to the producer thread
+                    if work.aborted:  # another thread failed: what this one loaded is rolled back
+                        return
+            except BaseException as exc:  # noqa: BLE001 -- raised by the producer thread
                 errors.append(exc)
-                finished.set()
-                while work.get() is not None:  # drain so the producer never blocks
-                    pass
+                work.abort()
 
         threads = [threading.Thread(target=worker, daemon=True) for _ in range(threads_n)]
         for t in threads:
             t.start()
         try:
             for chunk in chunks:
-                if errors:
-                    break
                 into, data = (graph, chunk.encode("utf-8")) if type(chunk) is str else (
                     chunk.graph, chunk.text.encode("utf-8"))  # type: ignore[union-attr]
                 if self._tee is not None:
                     self._tee.write_bytes(into, data)
-                if type(chunk) is str:
-                    work.put(data)
-                elif not isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
-                    work.put((into, data))
+                if isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
+                    continue
+                if not work.put(data if type(chunk) is str else (into, data)):
+                    break  # a worker failed
+        except BaseException:
+            work.abort()
+            raise
         finally:
-            for _ in threads:
-                work.put(None)
+            work.close()
             for t in threads:
                 t.join()
         if errors:
@@ -1416,8 +1474,8 @@ class GraphStore:
             self._rebuild_without(set(), progress)
             self._db.optimize()  # the bulk loader's tables, merged now rather than beside the published ones
             self._commit()
-        except BaseException:
-            self._rollback()
+        except BaseException as exc:
+            self._failed(exc)
             raise
 
     def disk_bytes(self) -> int:
@@ -1429,11 +1487,8 @@ class GraphStore:
 
     def graphs(self) -> list[str]:
         """The loaded files' graphs (and graphs users or `link` added): not staging graphs, the
-        vocabulary graph or a file's derived layer."""
-        names = {g.value for g in self._db.named_graphs()
-                 if isinstance(g, ox.NamedNode) and not g.value.startswith(STAGING)}
-        names.discard(VOCABULARY_GRAPH)
-        return sorted(names - {derived_graph_iri(g) for g in names})
+        vocabulary graph or a program's derived layer (see :func:`graph_layout`)."""
+        return graph_layout(self).listed()
 
     def all_graphs(self) -> list[str]:
         """Every named graph but staging ones: with the vocabulary and the derived layers."""
@@ -1671,6 +1726,25 @@ class _BlankMatch:
         if was is None:
             was = self.renamed[label] = uuid.uuid4().hex.encode("ascii")
         return was
+
+
+def graph_layout(store: Store) -> GraphLayout:
+    """What each named graph of ``store`` is, from its records (:class:`GraphLayout`): the program
+    graphs (``p21:ExchangeStructure``) and the link graphs with their program (``p21:LinkGraph``,
+    ``p21:linkedProgram``). One query, answered from the indexes of those two classes, on any store."""
+    rows = store.query(f"SELECT ?g ?program WHERE {{ GRAPH ?g {{ {{ ?g a <{P21_NS}ExchangeStructure> }} UNION "
+                       f"{{ ?g a <{P21_NS}LinkGraph> ; <{P21_NS}linkedProgram> ?program }} }} }}")
+    programs: set[str] = set()
+    links: dict[str, str] = {}
+    for row in rows:
+        graph, program = row[0], row[1]
+        if not isinstance(graph, ox.NamedNode):
+            continue
+        if program is None:
+            programs.add(graph.value)
+        elif isinstance(program, ox.NamedNode):
+            links[graph.value] = program.value
+    return GraphLayout(frozenset(store.all_graphs()), frozenset(programs), links)
 
 
 def directory_bytes(path: Path) -> int:

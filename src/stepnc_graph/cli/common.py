@@ -219,11 +219,13 @@ def fail_input(exc: Exception, fmt: str = "text") -> NoReturn:
 def user_errors() -> tuple[type[BaseException], ...]:
     """The exceptions that mean bad input or usage, not a bug (imported when needed)."""
     from stepnc_graph.export import ExportError
+    from stepnc_graph.naming import GraphNameError
     from stepnc_graph.part21 import Part21SyntaxError
     from stepnc_graph.sources import SourceError
     from stepnc_graph.store import StoreError
 
-    return (UsageProblem, StoreError, SourceError, ExportError, Part21SyntaxError, OSError, UnicodeError)
+    return (UsageProblem, StoreError, SourceError, GraphNameError, ExportError, Part21SyntaxError, OSError,
+            UnicodeError)
 
 
 

@@ -75,10 +75,12 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
     Exit codes: 0 loaded cleanly, 1 loaded with diagnostics, 2 a file could not
     be loaded (syntax error in strict mode, unreadable) or bad usage.
     """
+    from stepnc_graph.loader import refuse_graph_name_clashes
     from stepnc_graph.sources import plan_sources, refuse_replacing_other_files
 
     sources = plan_sources(inputs, base_iri)
     with open_writer(store_path, memory, wait, remote) as store:
+        refuse_graph_name_clashes(store, [s.graph for s in sources])
         if not replace:
             refuse_replacing_other_files(store, sources)
         results, failures = _load_all(store, sources, lenient, fmt)
@@ -200,10 +202,34 @@ def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None
     with open_reader(store_path, remote) as store:
         data = export(store, fmt, graph)
     if output is None:
-        write_out(data, uchar=fmt != "p21")
+        try:
+            write_out(data, uchar=fmt != "p21")
+        except OSError as e:
+            raise UsageProblem(f"cannot write the export to standard output: {e.strerror or e}") from None
     else:
-        output.write_bytes(data)
+        _write_output(output, data)
         err.print(f"wrote {escape(str(output))} ({len(data)} bytes)")
+
+
+def _write_output(output: Path, data: bytes) -> None:
+    """Write ``data`` to the file ``output``; a failure (a full disk, ``/dev/full``) names the file
+    and the cause, and a file cut short by it is removed: it must not pass for an export."""
+    try:
+        fh = open(output, "wb")
+    except OSError as e:
+        raise UsageProblem(f"-o {output}: cannot write the export: {e.strerror or e}") from None
+    try:
+        with fh:
+            fh.write(data)
+    except OSError as e:
+        cut = f"-o {output}: cannot write the export: {e.strerror or e}"
+        try:
+            if output.is_file():
+                output.unlink()
+                cut += " (the part written was removed)"
+        except OSError:
+            cut += " (the part written is still there)"
+        raise UsageProblem(cut) from None
 
 
 @click.command("unload")
@@ -218,26 +244,36 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
                compact: bool) -> None:
     """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`).
 
-    Removing the only program gives its disk space back at once. Beside other
-    programs, deleted data keeps its space until the database is compacted,
-    and a compaction rewrites the whole store, so unload compacts once the
-    data deleted since the last compaction reaches a third of the store
-    (`info` shows how much waits); `--compact` compacts now. Exit 2 if a graph
-    is not in the store (the others are still removed).
+    A program goes with its derived layer and its link graphs; a link graph
+    (<program>/links/<name>) goes alone. The vocabulary graph and a derived
+    layer on its own are refused. Removing the only program gives its disk
+    space back at once. Beside other programs, deleted data keeps its space
+    until the database is compacted, and a compaction rewrites the whole
+    store, so unload compacts once the data deleted since the last compaction
+    reaches a third of the store (`info` shows how much waits); `--compact`
+    compacts now. Exit 2 if a graph is not in the store or is refused (the
+    others are still removed).
     """
     from stepnc_graph.api import unload
+    from stepnc_graph.naming import GraphNameError
 
     for g in graphs:
         _check_graph(g, "graph")
+    problems: dict[str, Exception] = {}
     with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
         last = next((g for g in reversed(graphs) if store.has_graph(g)), None)  # one compaction, at the end
-        missing = [g for g in graphs if not unload(store, g, compact=compact and g == last)]
+        for g in graphs:
+            try:
+                if not unload(store, g, compact=compact and g == last):
+                    problems[g] = UsageProblem(f"no graph {g} in the store (see `stepnc-graph info`)")
+            except GraphNameError as exc:
+                problems[g] = exc
     for g in graphs:
-        if g not in missing:
+        if g not in problems:
             out.print(f"removed: {escape(g)}")
-    if missing:
-        for g in missing:
-            print_error(UsageProblem(f"no graph {g} in the store (see `stepnc-graph info`)"))
+    if problems:
+        for problem in problems.values():
+            print_error(problem)
         sys.exit(EXIT_BAD_INPUT)
 
 
