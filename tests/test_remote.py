@@ -11,6 +11,7 @@ import base64
 import http.server
 import json
 import os
+import re
 import shutil
 import signal
 import ssl
@@ -210,12 +211,16 @@ def fake_endpoint(answer: Any) -> Iterator[tuple[str, list[tuple[str, str, dict[
 
 
 ASK_TRUE = (200, "application/sparql-results+json", b'{"head": {}, "boolean": true}')
-NO_GRAPHS = (200, "application/sparql-results+json", b'{"head": {"vars": ["g"]}, "results": {"bindings": []}}')
 
 
 def empty_store(path: str, text: str, headers: dict[str, str]) -> Any:
-    """An empty store's answers to `info`."""
-    return ASK_TRUE if text.startswith("ASK") else NO_GRAPHS
+    """An empty store's answers to `info`: no rows, with the variables each SELECT projects."""
+    if text.startswith("ASK"):
+        return ASK_TRUE
+    projected = re.search(r"SELECT\s+(?:DISTINCT\s+)?((?:\?\w+\s*)+)", text)
+    names = re.findall(r"\?(\w+)", projected.group(1)) if projected else ["g"]
+    return 200, "application/sparql-results+json", json.dumps({"head": {"vars": names},
+                                                               "results": {"bindings": []}}).encode()
 
 
 def test_an_unexpected_answer_is_a_clear_error(tmp_path: Path) -> None:
