@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from rdflib import OWL, RDF, RDFS, Graph, Literal, URIRef
+from rdflib import OWL, RDF, RDFS, XSD, BNode, Graph, Literal, URIRef
+from rdflib.collection import Collection
 
 from stepnc_graph.generators.rdfio import stable_turtle
 from stepnc_graph.naming import P21, P21_ONTOLOGY
@@ -39,4 +40,19 @@ class P21VocabularyGenerator:
             g.add((iri, RDFS.label, Literal(term.name)))
             g.add((iri, RDFS.comment, Literal(term.comment)))
             g.add((iri, RDFS.isDefinedBy, o))
+        define_logical_unknown(g)
         return {"p21.ttl": stable_turtle(g)}
+
+
+def define_logical_unknown(g: Graph) -> None:
+    """``p21:logicalUnknown`` as the data range holding the one string "UNKNOWN".
+
+    OWL 2 DL admits a datatype outside its datatype map when it is defined by a
+    data range (a DatatypeDefinition, owl:equivalentClass in RDF); reasoners such
+    as HermiT refuse one that is only declared.
+    """
+    node, members = BNode("logical_unknown_definition"), BNode("logical_unknown_values")
+    g.add((node, RDF.type, RDFS.Datatype))
+    Collection(g, members, [Literal("UNKNOWN", datatype=XSD.string)])
+    g.add((node, OWL.oneOf, members))
+    g.add((P21.logicalUnknown, OWL.equivalentClass, node))
