@@ -85,3 +85,19 @@ def test_subtypes_and_oneof_constraints_are_iso(iso_model, iso: SchemaModel) -> 
     # the multiple inheritance ISO 10303-42 has, which the source's ONEOFs had forbidden
     assert model.entity("vertex_point").supertypes == ("vertex", "geometric_representation_item")
     assert model.entity("representation_item").supertype_expr is None
+
+
+def test_brep_items_load_and_validate_clean() -> None:
+    """vertex_point, edge_curve (topological and geometric items at once) and poly_loop (name,
+    polygon) as ISO writes them: before, three ONEOF violations and an argument-count error."""
+    import stepnc_graph as sg
+    from stepnc_graph.validate import validate
+
+    from conftest import FIXTURES
+
+    program = FIXTURES / "owl" / "brep_edge.stp"
+    with sg.open_store(memory=True) as store:
+        [result] = sg.load(store, [program])
+    assert result.diagnostics == [] and result.instances == 10
+    report = validate([program])
+    assert not report.results, [str(r) for r in report.results]
