@@ -104,3 +104,9 @@ def test_dl_reading_of_logical_unknown() -> None:
     g = owl_dl.dl_reading([(s, p, unknown, URIRef("urn:x:g")),
                            (s, p, Literal(1), URIRef(owl_dl.VOCABULARY_GRAPH))], Graph())
     assert set(g) == {(s, p, Literal("UNKNOWN", datatype=XSD.string))}
+
+
+def test_missing_owl_api_is_a_stated_skip_reason(tmp_path: Path) -> None:
+    """Without Debian's OWL API the profile test skips and says how to install it."""
+    with pytest.raises(owl_dl.ToolMissing, match="apt-get install libowlapi-java"):
+        owl_dl.owlapi_classpath(tmp_path)

@@ -123,6 +123,8 @@ def ontology_files(directory: Path = ONTOLOGY) -> list[tuple[str, Path]]:
 def profile_violations(directory: Path = ONTOLOGY, timeout: float = 300) -> list[Violation]:
     """The OWL 2 DL profile violations the OWL API finds in each ontology of ``directory`` (with its
     imports) and in the union of all (ontology ``urn:x-stepnc-graph:all-ontologies``)."""
+    if shutil.which("javac") is None:  # java runs a source file with the JDK's compiler
+        raise ToolMissing(f"no JDK (javac) to run {CHECKER.name}: {INSTALL_HINT}")
     command = [java(), "-cp", owlapi_classpath(), str(CHECKER),
                *(f"{iri}={path}" for iri, path in ontology_files(directory))]
     done = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
