@@ -42,9 +42,11 @@ from stepnc_graph.typemap import ValueShape, value_shape
 KIND_NAMES = {Entity: "ENTITY", DefinedType: "DEFINED_TYPE", EnumerationType: "ENUMERATION",
               SelectType: "SELECT"}
 
-#: Annotation properties of other vocabularies the generated ontologies use; OWL 2 DL wants
-#: each declared in the ontology that uses it.
+#: Annotation properties of other vocabularies the generated ontologies use; OWL 2 DL wants each
+#: declared in the ontology that uses it or in one it imports. The schema ontologies' two are
+#: declared once, in p21.ttl (which each imports), so that no triple is in two files.
 FOREIGN_ANNOTATIONS = (DCTERMS.title, DCTERMS.source, SKOS.definition)
+SCHEMA_ANNOTATIONS = (DCTERMS.title, DCTERMS.source)
 
 
 def holds_list(shape: ValueShape) -> bool:
@@ -89,8 +91,7 @@ class OwlGenerator:
         self.add_ontology(g, info)
         for decl in self.model.in_schema(schema):
             self.add_declaration(g, decl, info)
-        declare_annotations(g)
-        return g
+        return g  # dcterms:title and dcterms:source are declared in p21.ttl, which every schema imports
 
     def new_graph(self) -> Graph:
         g = Graph()

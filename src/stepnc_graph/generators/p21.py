@@ -5,6 +5,7 @@ from __future__ import annotations
 from rdflib import OWL, RDF, RDFS, XSD, BNode, Graph, Literal, URIRef
 from rdflib.collection import Collection
 
+from stepnc_graph.generators.owl import SCHEMA_ANNOTATIONS
 from stepnc_graph.generators.rdfio import stable_turtle
 from stepnc_graph.naming import P21, P21_ONTOLOGY
 from stepnc_graph.p21vocab import TERMS
@@ -41,6 +42,8 @@ class P21VocabularyGenerator:
             g.add((iri, RDFS.comment, Literal(term.comment)))
             g.add((iri, RDFS.isDefinedBy, o))
         define_logical_unknown(g)
+        for annotation in SCHEMA_ANNOTATIONS:  # used by every schema ontology, which imports this one
+            g.add((annotation, RDF.type, OWL.AnnotationProperty))
         return {"p21.ttl": stable_turtle(g)}
 
 
