@@ -9,7 +9,7 @@ from rdflib.collection import Collection
 from rdflib.compare import graph_diff, isomorphic, to_isomorphic
 
 from stepnc_graph.express import parse_file
-from stepnc_graph.generators.owl import OwlGenerator
+from stepnc_graph.generators.owl import OwlGenerator, holds_list
 from stepnc_graph.naming import P21, STEPNC
 from stepnc_graph.schema import build_model
 from stepnc_graph.schema.catalog import Catalog
@@ -57,7 +57,7 @@ def test_attribute_properties(tiny: Graph) -> None:
     assert (length, P21.expressType, Literal("length_measure")) in tiny
     assert (length, P21.position, Literal(3)) in tiny  # after part.name, part.tags
     assert (STEPNC["part.name"], P21.position, Literal(1)) in tiny
-    assert (STEPNC["bolt.points"], RDFS.range, RDF.List) in tiny
+    assert (STEPNC["bolt.points"], RDFS.range, P21.List) in tiny  # OWL 2 DL reserves rdf:List
     assert (STEPNC["bolt.points"], P21.aggregate, Literal("LIST [2:?]")) in tiny
     assert (STEPNC["nut.fits"], RDFS.range, STEPNC.bolt) in tiny  # SET -> repeated values
     assert (STEPNC["nut.fits"], RDF.type, OWL.ObjectProperty) in tiny
@@ -117,7 +117,7 @@ def test_every_seed_declaration_is_in_the_ontology(schema: str, shipped: Graph, 
         for a in model.entity(e.name).attributes:
             p = n.attribute(e.name, a.name)
             shape = value_shape(model, n, a.type)
-            want_range = RDF.List if shape.form == "list" else shape.leaf.range
+            want_range = P21.List if holds_list(shape) else shape.leaf.range
             got_range = shipped.value(p, RDFS.range)
             if not shape.leaf.logical:
                 assert got_range == want_range, (p, got_range, want_range)
@@ -140,3 +140,82 @@ def test_python_vocabulary_rejects_typos() -> None:
     assert P21_TERMS.position == P21.position
     with pytest.raises(AttributeError):
         TERMS.turning_workingstp  # noqa: B018
+
+
+# -- OWL 2 DL, checked without Java (tests/test_owl_dl.py runs the OWL API and HermiT) ---------
+
+
+BUILTIN_ANNOTATIONS = {RDFS.label, RDFS.comment, RDFS.seeAlso, RDFS.isDefinedBy, OWL.versionInfo,
+                       OWL.deprecated}
+
+
+def test_no_iri_is_two_kinds_of_property(shipped: Graph) -> None:
+    """OWL 2 DL forbids punning between property kinds: a sub-property has its parent's kind."""
+    kinds: dict[URIRef, set[URIRef]] = {}
+    for kind in (OWL.DatatypeProperty, OWL.ObjectProperty, OWL.AnnotationProperty, RDF.Property):
+        for p in shipped.subjects(RDF.type, kind):
+            kinds.setdefault(p, set()).add(kind)  # type: ignore[arg-type]
+    assert {p: k for p, k in kinds.items() if len(k) > 1} == {}
+    assert not set(shipped.subjects(RDF.type, RDF.Property))
+    mixed = [(s, o) for s, o in shipped.subject_objects(RDFS.subPropertyOf) if kinds.get(s) != kinds.get(o)]  # type: ignore[arg-type]
+    assert mixed == []
+
+
+def test_generic_property_of_mixed_values_is_an_annotation(shipped: Graph) -> None:
+    """attr:diameter holds a length in milling_tool_dimension and a toleranced length in round_hole."""
+    from stepnc_graph.naming import generic_attribute, generic_attribute_of_kind
+
+    diameter = generic_attribute("diameter")
+    assert (diameter, RDF.type, OWL.AnnotationProperty) in shipped
+    literal, node = generic_attribute_of_kind("diameter", "literal"), generic_attribute_of_kind("diameter", "node")
+    assert (STEPNC["milling_tool_dimension.diameter"], RDFS.subPropertyOf, literal) in shipped
+    assert (STEPNC["round_hole.diameter"], RDFS.subPropertyOf, node) in shipped
+    assert {diameter} == set(shipped.subjects(RDFS.seeAlso, literal)) == set(shipped.subjects(RDFS.seeAlso, node))
+    assert (generic_attribute("its_id"), RDF.type, OWL.DatatypeProperty) in shipped  # one kind: as before
+
+
+def test_no_reserved_vocabulary_as_range_and_no_one_operand_union(shipped: Graph) -> None:
+    assert list(shipped.subjects(RDFS.range, RDF.List)) == []
+    assert len(list(shipped.subjects(RDFS.range, P21.List))) > 40
+    short = [s for s, lst in shipped.subject_objects(OWL.unionOf) if len(list(Collection(shipped, lst))) < 2]  # type: ignore[arg-type]
+    assert short == []
+    assert (STEPNC.reversible_topology, OWL.unionOf, None) in shipped
+
+
+def test_annotation_properties_are_declared(shipped: Graph) -> None:
+    declared = set(shipped.subjects(RDF.type, OWL.AnnotationProperty))
+    properties = declared | set(shipped.subjects(RDF.type, OWL.DatatypeProperty)) | set(
+        shipped.subjects(RDF.type, OWL.ObjectProperty))
+    structural = {str(RDF), str(RDFS), str(OWL)}
+    used = {p for p in shipped.predicates() if not any(str(p).startswith(ns) for ns in structural)}
+    assert sorted(used - properties) == []
+    assert BUILTIN_ANNOTATIONS.isdisjoint(declared)
+
+
+def test_logical_unknown_is_a_defined_datatype(shipped: Graph) -> None:
+    """HermiT accepts a datatype outside the OWL 2 map only with a definition."""
+    definition = shipped.value(P21.logicalUnknown, OWL.equivalentClass)
+    assert definition is not None
+    assert list(Collection(shipped, shipped.value(definition, OWL.oneOf))) == [Literal("UNKNOWN", datatype=XSD.string)]
+
+
+def _superclasses(g: Graph, c: URIRef) -> set[URIRef]:
+    return set(g.transitive_objects(c, RDFS.subClassOf))  # type: ignore[arg-type]
+
+
+def test_no_class_is_below_two_disjoint_classes(shipped: Graph) -> None:
+    """No class is empty by disjointness: ISO 10303-42 lets vertex_point be a topological and a
+    geometric representation item, which a ONEOF on representation_item forbade."""
+    disjoint: set[frozenset[URIRef]] = set()
+    for node in shipped.subjects(RDF.type, OWL.AllDisjointClasses):
+        members = list(Collection(shipped, shipped.value(node, OWL.members)))
+        disjoint |= {frozenset((a, b)) for a in members for b in members if a != b}  # type: ignore[misc]
+    empty = {}
+    for c in set(shipped.subjects(RDF.type, OWL.Class)):
+        above = _superclasses(shipped, c)  # type: ignore[arg-type]
+        clashes = [tuple(sorted(pair)) for pair in disjoint if pair <= above]
+        if clashes:
+            empty[c] = clashes
+    assert empty == {}
+    assert {STEPNC.topological_representation_item, STEPNC.geometric_representation_item} <= _superclasses(
+        shipped, STEPNC.vertex_point)

@@ -5,7 +5,8 @@ Paths are relative to a project root: ``ontology/*.ttl``, ``shapes/*.ttl``,
 commands read instead of the EXPRESS, see :mod:`stepnc_graph.schema.cache`),
 ``shapes/compiled-checks.json`` (the shapes as SPARQL checks, see
 :mod:`stepnc_graph.validate.compiled`),
-``docs/ontology.html`` and ``src/stepnc_graph/vocab.py``.
+``docs/ontology.html``, ``src/stepnc_graph/vocab.py`` and ``ontology/editions/editions.json``
+(what tells the editions apart, see :mod:`stepnc_graph.schema.editions`).
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ from stepnc_graph.generators.p21 import P21VocabularyGenerator
 from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
 from stepnc_graph.generators.shacl import ShapesGenerator
 from stepnc_graph.mapping.plan import Plans
-from stepnc_graph.schema import cache
-from stepnc_graph.schema.catalog import load_catalog_model
+from stepnc_graph.schema import cache, editions
+from stepnc_graph.schema.catalog import EDITIONS, load_catalog_model
+from stepnc_graph.schema.view import SchemaModel
 from stepnc_graph.validate import compiled
 
 
@@ -58,7 +60,19 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"docs/{rel}"] = text
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
         out[f"src/stepnc_graph/{rel}"] = text
+    out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
     return out
+
+
+def edition_table(express_directory: Path, model: SchemaModel) -> str:
+    """``ontology/editions/editions.json``: the shipped model against each edition found beside it."""
+    models, sources = {editions.SHIPPED: model}, {editions.SHIPPED: "ontology/express/schemas.toml"}
+    for edition in EDITIONS:
+        directory = express_directory.parent / "editions" / edition
+        if (directory / "schemas.toml").is_file():
+            models[edition] = load_catalog_model(directory)[1]
+            sources[edition] = f"ontology/editions/{edition}/schemas.toml"
+    return editions.dumps(editions.table(models, sources))
 
 
 def compiled_checks(generated: dict[str, str], shapes_directory: Path) -> str:

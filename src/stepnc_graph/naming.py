@@ -182,6 +182,13 @@ def generic_attribute_iri(name: str) -> str:
     return ATTRIBUTE_NS + name.lower()
 
 
+def generic_attribute_of_kind(name: str, kind: str) -> URIRef:
+    """The generic property of the attributes called ``name`` whose values are of one ``kind``
+    (``literal`` or ``node``): ``attr:<name>.<kind>``, used where attributes of that name have
+    both kinds (no EXPRESS name has a dot, so these never collide with :func:`generic_attribute`)."""
+    return _uri(f"{generic_attribute_iri(name)}.{kind}")
+
+
 def analysis_term(name: str) -> URIRef:
     """A term of the analysis vocabulary (``sga:RoughingOperation``, ``sga:next``, ...)."""
     return _uri(ANALYSIS_NS + name)

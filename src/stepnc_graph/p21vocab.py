@@ -88,5 +88,11 @@ TERMS: tuple[Term, ...] = (
                                "dcterms:identifier), written from one mapping file; the program graph is not changed."),
     Term("linkedProgram", "object", "The program graph (p21:ExchangeStructure) whose instances a link graph links."),
     Term("unset", "individual", "An unset ($) member of an ARRAY with OPTIONAL elements."),
-    Term("logicalUnknown", "datatype", "Datatype of the LOGICAL value UNKNOWN, the only member of its value space: \"UNKNOWN\"^^p21:logicalUnknown."),
+    Term("List", "class", "An RDF collection (rdf:first / rdf:rest) holding a LIST, ARRAY or BAG value, or a nested "
+                          "aggregate: the range of such attributes (OWL 2 DL reserves rdf:List). The members' class "
+                          "or datatype is the attribute's p21:elementType."),
+    Term("logicalUnknown", "datatype", "Datatype of the LOGICAL value UNKNOWN, the only member of its value space: "
+                                       "\"UNKNOWN\"^^p21:logicalUnknown. Defined (owl:equivalentClass) as the one "
+                                       "string \"UNKNOWN\", so that OWL 2 DL reasoners accept it; a reasoner reads a "
+                                       "value of it as that string (OWL 2 DL admits no literal of a defined datatype)."),
 )

@@ -626,7 +626,6 @@ class STEPNC(DefinedNamespace):
         "bottom_transition_round.second_offset",
         "bottom_transition_slope.angle_to_bottom",
         "bottom_transition_slope.first_offset",
-        "bounded_pcurve.name",
         "calendar_date.day_component",
         "calendar_date.month_component",
         "cartesian_point.coordinates",
@@ -876,6 +875,7 @@ class STEPNC(DefinedNamespace):
         "manufacturing_feature.its_workpiece",
         "mapped_item.mapping_source",
         "mapped_item.mapping_target",
+        "mapped_item.name",
         "material.material_identifier",
         "material.material_property",
         "material.standard_identifier",
@@ -968,6 +968,7 @@ class STEPNC(DefinedNamespace):
         "pathmode_type.forward",
         "pathmode_type.zigzag",
         "pcurve.basis_surface",
+        "pcurve.name",
         "pcurve.reference_to_curve",
         "person.first_name",
         "person.id",
@@ -1002,6 +1003,7 @@ class STEPNC(DefinedNamespace):
         "pocket.planar_radius",
         "pocket.slope",
         "point.name",
+        "poly_loop.name",
         "poly_loop.polygon",
         "polyline.name",
         "polyline.points",
@@ -1322,6 +1324,7 @@ class P21(DefinedNamespace):
     DataSection: URIRef
     ExchangeStructure: URIRef
     LinkGraph: URIRef
+    List: URIRef
     RawInstance: URIRef
     TypedValue: URIRef
     UnreadableInstance: URIRef

@@ -8,6 +8,12 @@ defined type -> owl:Class of typed values (used where the type name must be
 kept, i.e. inside a SELECT) with the XSD datatype as annotation;
 ENUMERATION -> owl:Class with one individual per item (owl:oneOf);
 SELECT -> owl:Class, each member rdfs:subClassOf it, and owl:unionOf.
+
+The output is OWL 2 DL (checked by ``tests/test_owl_dl.py`` with the OWL API's
+profile checker and HermiT): no IRI is both a data and an object property,
+annotation properties from other vocabularies are declared, list-valued
+properties range over ``p21:List`` (OWL 2 DL reserves ``rdf:List``) and a
+one-member SELECT is an equivalent class, not a one-operand union.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from __future__ import annotations
 from rdflib import OWL, RDF, RDFS, XSD, BNode, Graph, Literal, URIRef
 from rdflib.term import Node
 from rdflib.collection import Collection
-from rdflib.namespace import DCTERMS
+from rdflib.namespace import DCTERMS, SKOS
 
 from stepnc_graph.naming import P21, P21_ONTOLOGY, Naming
 from stepnc_graph.schema.catalog import Catalog
@@ -35,6 +41,31 @@ from stepnc_graph.typemap import ValueShape, value_shape
 
 KIND_NAMES = {Entity: "ENTITY", DefinedType: "DEFINED_TYPE", EnumerationType: "ENUMERATION",
               SelectType: "SELECT"}
+
+#: Annotation properties of other vocabularies the generated ontologies use; OWL 2 DL wants each
+#: declared in the ontology that uses it or in one it imports. The schema ontologies' two are
+#: declared once, in p21.ttl (which each imports), so that no triple is in two files.
+FOREIGN_ANNOTATIONS = (DCTERMS.title, DCTERMS.source, SKOS.definition)
+SCHEMA_ANNOTATIONS = (DCTERMS.title, DCTERMS.source)
+
+
+def holds_list(shape: ValueShape) -> bool:
+    """Whether an attribute of this shape has RDF collections as values (itself a LIST/ARRAY/BAG,
+    or a SET of them, one triple per member)."""
+    return shape.form == "list" or (shape.form == "repeated" and shape.element is not None
+                                    and shape.element.form == "list")
+
+
+def is_data(shape: ValueShape) -> bool:
+    """Whether an attribute of this shape is an ``owl:DatatypeProperty`` (literal values)."""
+    return not holds_list(shape) and shape.leaf.form == "literal"
+
+
+def declare_annotations(g: Graph) -> None:
+    """Declare every annotation property of :data:`FOREIGN_ANNOTATIONS` that ``g`` uses."""
+    for p in FOREIGN_ANNOTATIONS:
+        if next(g.triples((None, p, None)), None) is not None:
+            g.add((p, RDF.type, OWL.AnnotationProperty))
 
 
 def _where(rule: WhereRule) -> Literal:
@@ -60,7 +91,7 @@ class OwlGenerator:
         self.add_ontology(g, info)
         for decl in self.model.in_schema(schema):
             self.add_declaration(g, decl, info)
-        return g
+        return g  # dcterms:title and dcterms:source are declared in p21.ttl, which every schema imports
 
     def new_graph(self) -> Graph:
         g = Graph()
@@ -125,12 +156,6 @@ class OwlGenerator:
             self.add_enumeration(g, iri, decl)
         else:
             self.add_select(g, iri, decl)
-        for select in self.selects_containing(decl.name):
-            g.add((iri, RDFS.subClassOf, self.n.declaration(select)))
-
-    def selects_containing(self, name: str) -> list[str]:
-        return sorted(s.name for s in self.model.types.values()
-                      if isinstance(s, SelectType) and name in s.members)
 
     def add_entity(self, g: Graph, iri: URIRef, e: Entity) -> None:
         for st in e.supertypes:
@@ -172,8 +197,7 @@ class OwlGenerator:
     def add_attribute(self, g: Graph, a: Attribute, position: int | None) -> None:
         p = self.n.attribute(a.entity, a.name)
         shape = value_shape(self.model, self.n, a.type)
-        is_data = shape.form != "list" and shape.leaf.form == "literal"
-        g.add((p, RDF.type, OWL.DatatypeProperty if is_data else OWL.ObjectProperty))
+        g.add((p, RDF.type, OWL.DatatypeProperty if is_data(shape) else OWL.ObjectProperty))
         g.add((p, RDFS.label, Literal(a.name)))
         g.add((p, P21.expressName, Literal(a.name)))
         g.add((p, P21.declaredBy, self.n.declaration(a.entity)))
@@ -205,7 +229,7 @@ class OwlGenerator:
         if shape.aggregate:
             g.add((p, P21.aggregate, Literal(shape.aggregate)))
             g.add((p, P21.elementType, self.range_term(g, shape.leaf)))
-        g.add((p, RDFS.range, RDF.List if shape.form == "list" else self.range_term(g, shape.leaf)))
+        g.add((p, RDFS.range, P21.List if holds_list(shape) else self.range_term(g, shape.leaf)))
 
     def range_term(self, g: Graph, shape: ValueShape) -> URIRef | BNode:
         if not shape.logical:
@@ -247,9 +271,15 @@ class OwlGenerator:
             f"individual scoped by this type.")))
 
     def add_select(self, g: Graph, iri: URIRef, t: SelectType) -> None:
-        union = BNode(f"union_{t.name}")
-        Collection(g, union, [self.n.declaration(m) for m in t.members])
-        g.add((iri, OWL.unionOf, union))
+        members: list[Node] = [self.n.declaration(m) for m in t.members]
+        for m in members:  # said here, where the members are interfaced (imported), not in their ontology
+            g.add((m, RDFS.subClassOf, iri))
+        if len(members) == 1:  # OWL 2 DL wants two operands or more in a union
+            g.add((iri, OWL.equivalentClass, members[0]))
+        else:
+            union = BNode(f"union_{t.name}")
+            Collection(g, union, members)
+            g.add((iri, OWL.unionOf, union))
         g.add((iri, RDFS.comment, Literal(
             f"Select type {t.name} ({self.where_from(t.name)}): one of {', '.join(t.members)}. Members are "
             f"subclasses, so rdfs:subClassOf* finds every admissible class.")))

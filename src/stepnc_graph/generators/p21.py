@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from rdflib import OWL, RDF, RDFS, Graph, Literal, URIRef
+from rdflib import OWL, RDF, RDFS, XSD, BNode, Graph, Literal, URIRef
+from rdflib.collection import Collection
 
+from stepnc_graph.generators.owl import SCHEMA_ANNOTATIONS
 from stepnc_graph.generators.rdfio import stable_turtle
 from stepnc_graph.naming import P21, P21_ONTOLOGY
 from stepnc_graph.p21vocab import TERMS
@@ -39,4 +41,21 @@ class P21VocabularyGenerator:
             g.add((iri, RDFS.label, Literal(term.name)))
             g.add((iri, RDFS.comment, Literal(term.comment)))
             g.add((iri, RDFS.isDefinedBy, o))
+        define_logical_unknown(g)
+        for annotation in SCHEMA_ANNOTATIONS:  # used by every schema ontology, which imports this one
+            g.add((annotation, RDF.type, OWL.AnnotationProperty))
         return {"p21.ttl": stable_turtle(g)}
+
+
+def define_logical_unknown(g: Graph) -> None:
+    """``p21:logicalUnknown`` as the data range holding the one string "UNKNOWN".
+
+    OWL 2 DL admits a datatype outside its datatype map when it is defined by a
+    data range (a DatatypeDefinition, owl:equivalentClass in RDF); reasoners such
+    as HermiT refuse one that is only declared.
+    """
+    node, members = BNode("logical_unknown_definition"), BNode("logical_unknown_values")
+    g.add((node, RDF.type, RDFS.Datatype))
+    Collection(g, members, [Literal("UNKNOWN", datatype=XSD.string)])
+    g.add((node, OWL.oneOf, members))
+    g.add((P21.logicalUnknown, OWL.equivalentClass, node))

@@ -71,6 +71,23 @@ def load_catalog_model(directory: Path | None = None) -> tuple[Catalog, SchemaMo
     return catalog, build_model(parse_catalog(catalog), catalog.schemas)
 
 
+#: Editions other than the shipped one, each a catalogue of its own under ``ontology/editions/``.
+EDITIONS = ("fdis2001",)
+
+
+def edition_directory(edition: str) -> Path:
+    """The directory of an edition's catalogue (``schemas.toml`` and its EXPRESS files)."""
+    if edition not in EDITIONS:
+        raise KeyError(f"unknown edition {edition!r}; known: {', '.join(EDITIONS)}")
+    return express_dir().parent / "editions" / edition
+
+
+def load_edition_model(edition: str, directory: Path | None = None) -> tuple[Catalog, SchemaModel]:
+    """Parse and resolve the schemas of another edition (uncached), e.g. ``fdis2001``: the
+    ISO/FDIS 14649-10 and -11 of 2001. ``directory`` overrides where its catalogue is."""
+    return load_catalog_model(directory or edition_directory(edition))
+
+
 def iso14649() -> tuple[Catalog, SchemaModel]:
     """The shipped ISO 14649 model, read once per process from the compiled model.
 
