@@ -64,4 +64,4 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         raise UsageProblem(str(exc)) from None
     text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
     click.echo(text, nl=False)
-    sys.exit(EXIT_OK if report.conforms else EXIT_NONCONFORMING)
+    sys.exit(EXIT_OK if report.passes else EXIT_NONCONFORMING)
