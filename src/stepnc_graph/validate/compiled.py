@@ -93,6 +93,7 @@ def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
         "files": list(check.files), "argument": check.argument, "implied": check.implied,
         "excludes": None if check.excludes is None else sets.ref(check.excludes),
         "target_classes": list(check.target_classes), "args": [list(a) for a in check.args],
+        "multiplicity": check.multiplicity,
     }
 
 
@@ -101,7 +102,7 @@ def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
                  sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
                  d["parent"], d["sparql_node"], tuple(d["files"]), d["argument"], d["implied"],
                  None if d["excludes"] is None else sets[d["excludes"]], tuple(d["target_classes"]),
-                 tuple((a[0], a[1]) for a in d["args"]))
+                 tuple((a[0], a[1]) for a in d["args"]), d["multiplicity"])
 
 
 def dumps(names: Sequence[str], value: str, checks: Sequence[Check], hierarchy: Hierarchy) -> str:

@@ -388,9 +388,9 @@ class UniqueLangComponent(Component):
     def violations(self, c: Compiling, use: Use, focus: str) -> list[Violation]:
         if not self.active(use):
             return []
-        return [Violation(f"SELECT DISTINCT ?this ?_lang WHERE {{ {focus} ?this {use.path} ?_a . "
-                          f"?this {use.path} ?_b . BIND(LCASE(lang(?_a)) AS ?_lang) "
-                          f"FILTER(!sameTerm(?_a, ?_b) && ?_lang != \"\" && ?_lang = LCASE(lang(?_b))) }}")]
+        return [Violation(f"SELECT DISTINCT ?this ?lang WHERE {{ {focus} ?this {use.path} ?_a . "
+                          f"?this {use.path} ?_b . BIND(LCASE(lang(?_a)) AS ?lang) "
+                          f"FILTER(!sameTerm(?_a, ?_b) && ?lang != \"\" && ?lang = LCASE(lang(?_b))) }}")]
 
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         if not self.active(use):
@@ -424,8 +424,8 @@ class EqualsComponent(Component):
                 else f"{v} {p} {x} . FILTER(!sameTerm({x}, {v}))")
 
     def violations(self, c: Compiling, use: Use, focus: str) -> list[Violation]:
-        a, b = self._patterns(use, "?this", "?value")
-        return [Violation(f"SELECT DISTINCT ?this ?value WHERE {{ {focus} {{ {a} }} UNION {{ {b} }} }}")]
+        a, b = self._patterns(use, "?this", "?value")  # each branch binds its focus: a group sees no outer binding
+        return [Violation(f"SELECT DISTINCT ?this ?value WHERE {{ {{ {focus} {a} }} UNION {{ {focus} {b} }} }}")]
 
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         x = c.fresh("e")
@@ -462,8 +462,9 @@ class LessThanComponent(Component):
     op = "<"
 
     def violations(self, c: Compiling, use: Use, focus: str) -> list[Violation]:
-        return [Violation(f"SELECT DISTINCT ?this ?value WHERE {{ {focus} ?this {use.path} ?value . "
-                          f"?this {use.args[self.key]} ?_o FILTER(!COALESCE(?value {self.op} ?_o, false)) }}")]
+        # one result per pair (value node, value of the other property) that does not compare so
+        return [Violation(f"SELECT DISTINCT ?this ?value ?other WHERE {{ {focus} ?this {use.path} ?value . "
+                          f"?this {use.args[self.key]} ?other FILTER(!COALESCE(?value {self.op} ?other, false)) }}")]
 
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         x, o = c.fresh("l"), c.fresh("o")
@@ -731,8 +732,7 @@ class HasValueComponent(Component):
         arg = _value_term(use.args["hasValue"])
         if use.path is not None:
             return [Violation(f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {use.path} {arg} }} }}")]
-        return [Violation(f"SELECT ?this ?value WHERE {{ {focus} BIND(?this AS ?value) "
-                          f"FILTER(!sameTerm(?this, {arg})) }}")]
+        return [Violation(f"SELECT ?this WHERE {{ {focus} FILTER(!sameTerm(?this, {arg})) }}")]
 
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         arg = _value_term(use.args["hasValue"])
@@ -797,15 +797,15 @@ class SparqlComponent(Component):
         if len(select) != 1 or not select[0].startswith('"'):
             raise IllFormedShapes(f"{node}: a SPARQL constraint needs exactly one sh:select (a string)")
         where = f"the SPARQL constraint {node} of {use.shape}"
-        q = Query.parse(literal_text(select[0]).replace("\\n", "\n").replace("\\t", "\t"), c.prefixes(node), where)
+        q = Query.parse(literal_text(select[0]), c.prefixes(node), where)
         if q.form() != "SELECT":
             raise IllFormedShapes(f"{where}: sh:select holds no SELECT query")
         q.refuse_forbidden(PREBOUND)
-        return _prebind(c, q.replace_path(use.path), use.shape, {})
+        return q.replace_path(use.path)
 
     def violations(self, c: Compiling, use: Use, focus: str) -> list[Violation]:
-        q = self.query(c, use).ensure_projected("?this")
-        return [Violation(q.with_focus(lambda: focus), node=use.args["sparql"])]
+        q, extra = _prebind_variables(c, self.query(c, use), use.shape)
+        return [Violation(q.ensure_projected("?this").with_focus(lambda: focus + extra), node=use.args["sparql"])]
 
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         return f"NOT EXISTS {{ {self.body(c, use, v)} }}"
@@ -814,10 +814,28 @@ class SparqlComponent(Component):
         return [self.body(c, use, v)]
 
     def body(self, c: Compiling, use: Use, v: str) -> str:
-        return self.query(c, use).substitute({"this": v}).where_body()
+        return _prebind(c, self.query(c, use), use.shape, {}).substitute({"this": v}).where_body()
 
     def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
         return f"the SPARQL constraint found a problem{_found(value)}"
+
+
+def _prebind_variables(c: Compiling, q: Query, shape: str) -> tuple[Query, str]:
+    """``$this`` as ``?this``; ``$currentShape`` and ``$shapesGraph`` as variables bound by the
+    returned ``VALUES`` text, which goes wherever the focus pattern goes (so ``bound($shapesGraph)``
+    stays a variable test, as pre-binding makes it)."""
+    names, terms = [], []
+    if q.uses("currentShape"):
+        if shape.startswith("_:"):
+            raise UnsupportedShapes(f"{q.where}: $currentShape of a blank-node shape cannot be given to SPARQL")
+        names.append("?currentShape")
+        terms.append(shape)
+    if q.uses("shapesGraph"):
+        names.append("?shapesGraph")
+        terms.append(c.shapes_graph_iri())
+    q = q.substitute({"this": "?this", **{n[1:]: n for n in names}})
+    extra = f" VALUES ({' '.join(names)}) {{ ({' '.join(terms)}) }}" if names else ""
+    return q, extra
 
 
 def _prebind(c: Compiling, q: Query, shape: str, params: Mapping[str, str]) -> Query:
@@ -876,7 +894,7 @@ class CustomComponent(Component):
         node, kind = found
         text = self.g.value(node, sh(kind)) or ""
         where = f"the validator {node} of the component {self.node}"
-        q = Query.parse(literal_text(text).replace("\\n", "\n"), c.prefixes(node), where)
+        q = Query.parse(literal_text(text), c.prefixes(node), where)
         if q.form() != kind.upper():
             raise IllFormedShapes(f"{where}: sh:{kind} holds no {kind.upper()} query")
         names = [*PREBOUND, *(name for _, name, _ in self.params)] + (["value"] if kind == "ask" else [])

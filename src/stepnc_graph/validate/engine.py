@@ -34,6 +34,7 @@ skipped silently.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import os
 import re
@@ -66,6 +67,7 @@ LITERALS_GRAPH = "urn:stepnc-graph:validate:literals"
 LITERAL = "<urn:stepnc-graph:validate#literal>"
 ILL_TYPED = "<urn:stepnc-graph:validate#illTyped>"
 RDFS_CLASS = f"<{RDFS}Class>"
+OWL_IMPORTS = "<http://www.w3.org/2002/07/owl#imports>"
 SUBCLASS_OF = f"<{RDFS}subClassOf>"
 
 FOCUS_MARK = re.compile(r"⟦FOCUS (\?\w+)⟧")
@@ -105,6 +107,9 @@ class Check:
     target_classes: tuple[str, ...] = ()
     #: the component's parameter values (name, term), for messages
     args: tuple[tuple[str, str], ...] = ()
+    #: a property shape nested in a property shape: a pattern binding ``?this`` once per way a
+    #: root focus node reaches it (a value node reached twice is validated, and reported, twice)
+    multiplicity: str | None = None
 
 
 class Compiler:
@@ -127,8 +132,13 @@ class Compiler:
         for shape in self.targeted():
             if self.deactivated(shape):
                 continue
-            out.extend(self.shape_checks(shape, shape, lambda var: f"⟦FOCUS {var}⟧", None, ()))
+            root = self.root_focus
+            out.extend(self.shape_checks(shape, shape, root, None, (), None))
         return out
+
+    @staticmethod
+    def root_focus(var: str) -> str:
+        return f"⟦FOCUS {var}⟧"
 
     def targeted(self) -> list[str]:
         """Shapes with a target, explicit or implicit (a shape that is an rdfs:Class, SHACL 2.1.3.3)."""
@@ -196,9 +206,10 @@ class Compiler:
         return out
 
     def shape_checks(self, shape: str, target_shape: str, focus: Callable[[str], str], parent: str | None,
-                     trail: tuple[str, ...]) -> Iterator[Check]:
+                     trail: tuple[str, ...], chain: Callable[[str], str] | None) -> Iterator[Check]:
         """The checks of ``shape``, its focus nodes bound by ``focus(var)``; nested property shapes
-        get the value nodes of their parent as focus nodes (SHACL 4.7.2)."""
+        get the value nodes of their parent as focus nodes (SHACL 4.7.2); ``chain(var)`` binds them
+        once per way they are reached (None: each focus node once)."""
         if shape in trail:
             raise UnsupportedShapes(f"recursive shapes (sh:property): {' -> '.join((*trail, shape))}")
         target_classes, closures, others = self.targets(target_shape)
@@ -209,20 +220,27 @@ class Compiler:
                 prop = use.args["property"]
                 if self.deactivated(prop):
                     continue
-                nested = focus if use.path is None else self.value_focus(focus, use.path)
-                yield from self.shape_checks(prop, target_shape, nested, shape, (*trail, shape))
+                if use.path is None:
+                    nested, nested_chain = focus, chain
+                else:
+                    nested = self.value_focus(focus, use.path, True)
+                    nested_chain = self.value_focus(chain or focus, use.path, False)
+                yield from self.shape_checks(prop, target_shape, nested, shape, (*trail, shape), nested_chain)
                 continue
             self._stack = []
             for v in comp.violations(self, use, focus("?this")):
                 yield Check(shape, comp.key or comp.iri, f"<{comp.iri}>", use.path, use.path_term, severity,
                             v.query, classes, closures, others, parent, v.node,
                             self.describing_files(shape, parent, use, v.node), use.args.get(comp.key), None,
-                            v.excludes if classes else None, target_classes, tuple(use.args.items()))
+                            v.excludes if classes else None, target_classes, tuple(use.args.items()),
+                            chain("?this") if chain is not None else None)
 
-    def value_focus(self, focus: Callable[[str], str], path: str) -> Callable[[str], str]:
-        """The focus pattern of a property shape nested in a property shape: the parent's value nodes."""
+    def value_focus(self, focus: Callable[[str], str], path: str, distinct: bool) -> Callable[[str], str]:
+        """The focus pattern of a property shape nested in a property shape: the parent's value
+        nodes (``distinct``: each once)."""
         outer = self.fresh("f")
-        return lambda var: f"{{ SELECT DISTINCT {var} WHERE {{ {focus(outer)} {outer} {path} {var} }} }}"
+        select = "SELECT DISTINCT" if distinct else "SELECT"
+        return lambda var: f"{{ {select} {var} WHERE {{ {focus(outer)} {outer} {path} {var} }} }}"
 
     def describing_files(self, shape: str, parent: str | None, use: C.Use, node: str | None) -> tuple[int, ...]:
         """The files a result of this check is described from: those of its shape, the shape
@@ -287,8 +305,17 @@ class Compiler:
         return f"⟦DATATYPE {v} {datatype}⟧"
 
     def prefixes(self, node: str) -> dict[str, str]:
+        """The prefixes a SPARQL query may use (SHACL 5.2.1): the sh:declare values of its
+        sh:prefixes nodes and of what those import (owl:imports), in the shapes graph."""
         out: dict[str, str] = {}
-        for owner in self.g.objects(node, sh("prefixes")):
+        owners = list(self.g.objects(node, sh("prefixes")))
+        seen: set[str] = set()
+        while owners:
+            owner = owners.pop(0)
+            if owner in seen:
+                continue
+            seen.add(owner)
+            owners += self.g.objects(owner, OWL_IMPORTS)
             for decl in self.g.objects(owner, sh("declare")):
                 prefix = self.g.value(decl, sh("prefix"))
                 ns = self.g.value(decl, sh("namespace"))
@@ -469,13 +496,16 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
         except (SyntaxError, ValueError, OSError) as exc:
             raise IllFormedShapes(f"{check.shape}: its {check.constraint} check does not run: {exc}") from None
         names = [v.value for v in results.variables]  # type: ignore[union-attr]
-        keep = [n for n in names if not n.startswith("_") and n not in ("this", "value", "path")] \
-            if check.sparql_node is not None else []
+        # other named variables tell results apart (sh:lessThan's ?other, sh:uniqueLang's ?lang) and
+        # fill a SPARQL constraint's message
+        keep = [n for n in names if not n.startswith("_") and n not in ("this", "value", "path")]
         out = []
         for s in results:  # type: ignore[union-attr]
             if s["this"] is None:
                 continue
             value = s["value"] if "value" in names else None
+            if value is None and check.sparql_node is not None and check.path is None:
+                value = s["this"]  # a SPARQL-based result of a node shape: the focus node is the value (5.3.2)
             path = s["path"] if "path" in names else None
             out.append((s["this"], value, path if isinstance(path, ox.NamedNode) else None,
                         tuple((n, s[n]) for n in keep if s[n] is not None)))
@@ -486,10 +516,20 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
     rows: list[Row] = []
     seen: set[tuple[str, ...]] = set()
     for (check, _), solutions in zip(todo, found, strict=True):
+        times = _multiplicity(store, g, ctx, check) if solutions and check.multiplicity else {}
         for focus_node, value, path, bindings in solutions:
-            key = (check.shape, check.constraint, str(check.args), str(focus_node), str(value), str(path),
-                   str(bindings) if check.constraint == "uniqueLang" or check.sparql_node else "")
+            key = (check.shape, check.constraint, str(check.args), str(check.parent), str(focus_node), str(value),
+                   str(path), str(bindings))
             if key not in seen:  # a nested shape's ways to fail can match the same value twice
                 seen.add(key)
-                rows.append(Row(check, focus_node, value, path, bindings))
+                rows += [Row(check, focus_node, value, path, bindings)] * times.get(str(focus_node), 1)
     return rows, len(todo)
+
+
+def _multiplicity(store: ox.Store, g: ox.NamedNode, ctx: RunContext, check: Check) -> dict[str, int]:
+    """How many times each focus node of a nested property shape is reached from the root's."""
+    pattern = ctx.expand(dataclasses.replace(check, query=check.multiplicity or ""))
+    if not pattern:
+        return {}
+    rows = store.query(f"SELECT ?this (COUNT(*) AS ?n) WHERE {{ {pattern} }} GROUP BY ?this", default_graph=g)
+    return {str(r["this"]): int(r["n"].value) for r in rows}  # type: ignore[union-attr]

@@ -7,6 +7,7 @@ Read with pyoxigraph's Turtle parser (Rust; no rdflib at run time, which keeps
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from collections.abc import Iterable
 from pathlib import Path
@@ -189,4 +190,16 @@ def literal_text(term: str) -> str:
     if not term.startswith('"'):
         return term
     end = term.rindex('"')
-    return term[1:end].replace('\\"', '"').replace("\\\\", "\\")
+    return _ESCAPE.sub(_unescape, term[1:end])
+
+
+_ESCAPE = re.compile(r"\\(?:u([0-9A-Fa-f]{4})|U([0-9A-Fa-f]{8})|(.))")
+_CHARS = {"t": "\t", "b": "\b", "n": "\n", "r": "\r", "f": "\f", '"': '"', "'": "'", "\\": "\\"}
+
+
+def _unescape(m: re.Match[str]) -> str:
+    """One N-Triples escape sequence as its character."""
+    code = m.group(1) or m.group(2)
+    if code:
+        return chr(int(code, 16))
+    return _CHARS.get(m.group(3), m.group(0))
