@@ -205,18 +205,19 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
                 _add_shapes_graph(copy.oxigraph, shapes)
             report = _validate_store(copy, targets, shapes, list(checks), {})
     else:
-        report = _validate_files([Path(p) for p in source], shapes, list(checks), lenient, needs_shapes)  # type: ignore[attr-defined]
+        report = _validate_files([Path(p) for p in source], shapes, list(checks), lenient, needs_shapes,  # type: ignore[attr-defined]
+                                 iso_shapes)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
 
 
 def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Check], lenient: bool,
-                    needs_shapes: bool) -> ValidationReport:
-    """Load the files into a throw-away store (Part 21 and JSON-LD by the loader, other RDF by
-    :mod:`.rdfdata`) and check each file's graph."""
+                    needs_shapes: bool, iso_shapes: bool) -> ValidationReport:
+    """Load the files into a throw-away store (Part 21 by the loader, and JSON-LD program graphs
+    when the ISO shapes run; other RDF by :mod:`.rdfdata`) and check each file's graph."""
     from stepnc_graph.api import load
 
-    rdf = [p for p in paths if rdf_format(p) is not None and not p.is_dir()]
+    rdf = [p for p in paths if rdf_format(p, programs=iso_shapes) is not None and not p.is_dir()]
     programs = [p for p in paths if p not in rdf]
     with throwaway_store(paths) as store:
         if needs_shapes:
@@ -265,11 +266,17 @@ _POSITION_TERM = re.compile(r"(?:p21#|:)(?:id|line)\b")
 
 
 def _reads_positions(checks: Sequence[Check]) -> bool:
-    """Whether a check (an organisation's own SPARQL, say) reads ``p21:id``/``p21:line``: then the
-    throw-away graph keeps those triples; otherwise their lines come from the load (a sixth fewer
-    triples to insert; 100k instances, end to end, medians in one quiet hour: 4.2 s with them,
-    3.5-3.8 s without)."""
-    return any(_POSITION_TERM.search(c.query) for c in checks)
+    """Whether a check (an organisation's own SPARQL, say) may read ``p21:id``/``p21:line``: it
+    names them, reads any predicate (a variable in predicate position), or is ``sh:closed``. Then
+    the throw-away graph keeps those triples; otherwise their lines come from the load (a sixth
+    fewer triples to insert; 100k instances, end to end, medians in one quiet hour: 4.2 s with
+    them, 3.5-3.8 s without)."""
+    return any(_POSITION_TERM.search(c.query) or c.constraint == "closed"
+               or (c.sparql_node is not None and _ANY_PREDICATE.search(c.query)) for c in checks)
+
+
+#: a triple pattern whose predicate is a variable (after the subject, a variable or an IRI)
+_ANY_PREDICATE = re.compile(r"(?:[?$]\w+|<[^>\s]*>)\s+[?$]\w+\s+(?:[?$]\w+|<[^>\s]*>|\"|_:|\[|\d)")
 
 
 #: Input above this size is validated in a temporary on-disk store instead of memory: Oxigraph's
@@ -350,7 +357,7 @@ def _ill_typed_result(graph: str, bad: object) -> Result:
     assert isinstance(bad, IllTyped)
     lexical = literal_text(bad.literal)
     datatype = bad.literal.rsplit("^^", 1)[-1]
-    return Result("Violation", graph, bad.subject.strip("<>"), None, None, None, _local(bad.predicate), lexical,
+    return Result("Violation", graph, bad.subject.strip("<>"), None, None, None, _readable_path(bad.predicate), lexical,
                   f"{lexical!r} is not a valid {_local(datatype)} literal", None, None, "loader:RDF-ILL-TYPED",
                   path_iri=bad.predicate, value_term=bad.literal, focus_term=bad.subject)
 

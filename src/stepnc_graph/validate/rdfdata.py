@@ -31,7 +31,11 @@ from stepnc_graph.validate.engine import ILL_TYPED, LITERAL, LITERALS_GRAPH
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 SUFFIXES = {".ttl": ox.RdfFormat.TURTLE, ".nt": ox.RdfFormat.N_TRIPLES, ".nq": ox.RdfFormat.N_QUADS,
-            ".trig": ox.RdfFormat.TRIG, ".rdf": ox.RdfFormat.RDF_XML, ".owl": ox.RdfFormat.RDF_XML}
+            ".trig": ox.RdfFormat.TRIG, ".rdf": ox.RdfFormat.RDF_XML, ".owl": ox.RdfFormat.RDF_XML,
+            ".jsonld": ox.RdfFormat.JSON_LD}
+#: JSON-LD is a program graph (:mod:`stepnc_graph.jsonld_load`) when the ISO 14649 shapes run, any
+#: JSON-LD document otherwise; Oxigraph's parser then refuses a remote context (no network)
+PROGRAM_SUFFIXES = frozenset({".jsonld"})
 
 #: integer ranges of the XSD integer types (None: unbounded)
 INTEGER_RANGES: dict[str, tuple[int | None, int | None]] = {
@@ -127,8 +131,11 @@ class RdfLoad:
     ill_typed: list[IllTyped] = field(default_factory=list)
 
 
-def rdf_format(path: Path) -> ox.RdfFormat | None:
-    """The RDF format of a data file by its suffix; None when it is no RDF file validate reads this way."""
+def rdf_format(path: Path, programs: bool = False) -> ox.RdfFormat | None:
+    """The RDF format of a data file by its suffix; None when it is no RDF file validate reads this
+    way (``programs``: a ``.jsonld`` file is a program graph, read by the loader)."""
+    if programs and path.suffix.lower() in PROGRAM_SUFFIXES:
+        return None
     return SUFFIXES.get(path.suffix.lower())
 
 
