@@ -232,7 +232,8 @@ class Compiler:
                 yield Check(shape, comp.key or comp.iri, f"<{comp.iri}>", use.path, use.path_term, severity,
                             v.query, classes, closures, others, parent, v.node,
                             self.describing_files(shape, parent, use, v.node), use.args.get(comp.key), None,
-                            v.excludes if classes else None, target_classes, tuple(use.args.items()),
+                            v.excludes & classes if v.excludes is not None and classes and not others else None,
+                            target_classes, tuple(use.args.items()),
                             chain("?this") if chain is not None else None)
 
     def value_focus(self, focus: Callable[[str], str], path: str, distinct: bool) -> Callable[[str], str]:
