@@ -549,7 +549,7 @@ class _Describer:
                 return [self.fill(m, row) for m in own]
         args = dict(c.args)
         component = _COMPONENTS.get(c.component.strip("<>"))
-        text = component.message(self.g, args, value) if component is not None and args else \
+        text = component.message(self.g, args, value, c.shape) if component is not None and args else \
             f"{_local(c.component)} not satisfied{f', found {value}' if value is not None else ''}"
         return ['"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"']
 

@@ -121,7 +121,8 @@ class Component:
     def witnesses(self, c: Compiling, use: Use, v: str) -> list[str] | None:
         return None
 
-    def message(self, g: ShapesGraph, use_args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, use_args: Mapping[str, str], value: str | None, shape: str = "") -> str:
+        """The result's text when its shape gives none (``shape``: the shape using the component)."""
         return f"{self.iri.rsplit('#', 1)[-1]} not satisfied{_found(value)}"
 
 
@@ -176,7 +177,7 @@ class ClassComponent(ValueComponent):
     def ok(self, c: Compiling, use: Use, x: str) -> str:
         return c.class_test(x, use.args["class"])
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must be a {local(args['class'])}{_found(value)}"
 
 
@@ -188,7 +189,7 @@ class DatatypeComponent(ValueComponent):
     def ok(self, c: Compiling, use: Use, x: str) -> str:
         return c.datatype_test(x, use.args["datatype"])
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must be an {local(args['datatype'])} literal{_found(value)}"
 
 
@@ -211,7 +212,7 @@ class NodeKindComponent(ValueComponent):
             raise IllFormedShapes(f"{use.shape}: sh:nodeKind {kind} is not a SHACL node kind")
         return NODE_KINDS[name].format(v=x)
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must be a node of kind {local(args['nodeKind'])}{_found(value)}"
 
 
@@ -244,7 +245,7 @@ class MinCountComponent(Component):
         x = c.fresh("m")
         return [f"OPTIONAL {{ {v} {use.path} {x} }} FILTER(!bound({x}))"]
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         n = int(literal_text(args["minCount"]))
         return "required, found none" if n == 1 else f"at least {n} values required"
 
@@ -267,7 +268,7 @@ class MaxCountComponent(Component):
         distinct = " && ".join(f"!sameTerm({a}, {b})" for a, b in itertools.combinations(xs, 2))
         return [" ".join(f"{v} {use.path} {x} ." for x in xs) + (f" FILTER({distinct})" if distinct else "")]
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"at most {literal_text(args['maxCount'])} value(s) allowed"
 
 
@@ -300,7 +301,7 @@ class RangeComponent(ValueComponent):
     def ok(self, c: Compiling, use: Use, x: str) -> str:
         return f"COALESCE({x} {self.op} {term_text(use.args[self.key])}, false)"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must be {self.op} {literal_text(args[self.key])}{_found(value)}"
 
 
@@ -330,7 +331,7 @@ class LengthComponent(ValueComponent):
         n = _int(use.args[self.key], use.shape)
         return f"(!isBlank({x}) && COALESCE(STRLEN(STR({x})) {self.op} {n}, false))"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         words = "at least" if self.op == ">=" else "at most"
         return f"must have {words} {literal_text(args[self.key])} characters{_found(value)}"
 
@@ -354,7 +355,7 @@ class PatternComponent(ValueComponent):
         extra = f", {term_text(flags)}" if flags else ""
         return f"(!isBlank({x}) && COALESCE(REGEX(STR({x}), {term_text(use.args['pattern'])}{extra}), false))"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must match {literal_text(args['pattern'])}{_found(value)}"
 
 
@@ -371,7 +372,7 @@ class LanguageInComponent(ValueComponent):
         tests = " || ".join(f"langMatches(lang({x}), {term_text(r)})" for r in ranges)
         return f"(isLiteral({x}) && ({tests}))"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must have a language in {', '.join(literal_text(r) for r in g.items(args['languageIn']))}" \
                f"{_found(value)}"
 
@@ -399,7 +400,7 @@ class UniqueLangComponent(Component):
         return (f"NOT EXISTS {{ {v} {use.path} {a} . {v} {use.path} {b} . FILTER(!sameTerm({a}, {b}) && "
                 f"lang({a}) != \"\" && LCASE(lang({a})) = LCASE(lang({b}))) }}")
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return "two values share a language tag"
 
 
@@ -432,7 +433,7 @@ class EqualsComponent(Component):
         a, b = self._patterns(use, v, x)
         return f"(NOT EXISTS {{ {a} }} && NOT EXISTS {{ {b} }})"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must equal the values of {local(args['equals'])}{_found(value)}"
 
 
@@ -450,7 +451,7 @@ class DisjointComponent(Component):
         x = c.fresh("d")
         return f"NOT EXISTS {{ {_values(use, v, x)} {v} {use.args['disjoint']} {x} }}"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must not be a value of {local(args['disjoint'])}{_found(value)}"
 
 
@@ -471,7 +472,7 @@ class LessThanComponent(Component):
         return (f"NOT EXISTS {{ {v} {use.path} {x} . {v} {use.args[self.key]} {o} "
                 f"FILTER(!COALESCE({x} {self.op} {o}, false)) }}")
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must be {self.op} the values of {local(args[self.key])}{_found(value)}"
 
 
@@ -497,7 +498,7 @@ class NotComponent(ValueComponent):
         excluded = excluded_classes(c.g, use.args["not"]) if use.path is None else None
         return [Violation(v.query, excludes=excluded)]
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must not conform to {local(args['not'])}{_found(value)}"
 
 
@@ -534,7 +535,7 @@ class AndComponent(ListComponent):
         m = self.members(c, use, x)
         return "(" + " && ".join(m) + ")" if m else "true"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must conform to every listed shape{_found(value)}"
 
 
@@ -545,7 +546,7 @@ class OrComponent(ListComponent):
         m = self.members(c, use, x)
         return "(" + " || ".join(m) + ")" if m else "false"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must conform to one of the listed shapes{_found(value)}"
 
 
@@ -556,7 +557,7 @@ class XoneComponent(ListComponent):
         m = self.members(c, use, x)
         return f"(({' + '.join(f'IF({t}, 1, 0)' for t in m)}) = 1)" if m else "false"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must conform to exactly one of the listed shapes{_found(value)}"
 
 
@@ -586,11 +587,14 @@ class NodeComponent(ValueComponent):
         inner = c.witnesses(use.args["node"], x)
         return None if inner is None else [f"{v} {use.path} {x} . {w}" for w in inner]
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         comment = g.value(args["node"], "<http://www.w3.org/2000/01/rdf-schema#comment>")
         if comment:
             text = literal_text(comment).rstrip(".")
             return f"must be a{text[1:]}" if text.startswith("A ") else text
+        kind = g.value(shape, "<https://w3id.org/stepnc-graph/p21#expressType>") if shape else None
+        if kind:  # a generated list-members shape: the attribute's EXPRESS type says what the members are
+            return f"list members must fit {literal_text(kind)}"
         return f"must conform to {local(args['node'])}{_found(value)}"
 
 
@@ -649,7 +653,7 @@ class QualifiedMinCountComponent(QualifiedComponent):
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         return at_least(c, v, use.path or "", self.n(use), lambda x: self.condition(c, use, x))
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"at least {literal_text(args['qualifiedMinCount'])} value(s) must conform to " \
                f"{local(args['qualifiedValueShape'])}"
 
@@ -663,7 +667,7 @@ class QualifiedMaxCountComponent(QualifiedComponent):
     def holds(self, c: Compiling, use: Use, v: str) -> str:
         return f"!{at_least(c, v, use.path or '', self.n(use) + 1, lambda x: self.condition(c, use, x))}"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"at most {literal_text(args['qualifiedMaxCount'])} value(s) may conform to " \
                f"{local(args['qualifiedValueShape'])}"
 
@@ -719,7 +723,7 @@ class ClosedComponent(Component):
         x = c.fresh("pv")
         return f"NOT EXISTS {{ {v} {use.path} {x} . {x} {p} {o} {self._filter(c, use, p)} }}"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"a property the closed shape does not allow{_found(value)}"
 
 
@@ -745,7 +749,7 @@ class HasValueComponent(Component):
         m = c.fresh("m")
         return [f"OPTIONAL {{ {v} {use.path} {m} FILTER(sameTerm({m}, {arg})) }} FILTER(!bound({m}))"]
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"must have the value {local(args['hasValue'])}"
 
 
@@ -769,7 +773,7 @@ class InComponent(ValueComponent):
             return f"({x} IN ({', '.join(items)}))"
         return "(" + " || ".join(f"sameTerm({x}, {i})" for i in items) + ")"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         items = ", ".join(local(i).split(".")[-1] for i in g.items(args["in"]))
         return f"must be one of {items}{_found(value)}"
 
@@ -816,7 +820,7 @@ class SparqlComponent(Component):
     def body(self, c: Compiling, use: Use, v: str) -> str:
         return _prebind(c, self.query(c, use), use.shape, {}).substitute({"this": v}).where_body()
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"the SPARQL constraint found a problem{_found(value)}"
 
 
@@ -921,7 +925,7 @@ class CustomComponent(Component):
             return f"EXISTS {{ {body} }}"
         return f"NOT EXISTS {{ {v} {use.path} {x} . FILTER NOT EXISTS {{ {body} }} }}"
 
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None) -> str:
+    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
         return f"{local(self.node)} not satisfied{_found(value)}"
 
 
