@@ -41,14 +41,17 @@ cases = w.cases()
 run = w.run_case if sys.argv[1] == "ours" else w.run_pyshacl
 t1 = time.perf_counter(); c1 = time.process_time()
 outcomes = []
+engine_wall = engine_cpu = 0.0
 for case in cases:
     try:
         o = run(case)
     except Exception as exc:  # a crash counts as a failure
         o = w.Outcome("fail", type(exc).__name__)
     outcomes.append(o.status)
+    engine_wall += o.seconds; engine_cpu += o.cpu
 t2 = time.perf_counter(); c2 = time.process_time()
-print(json.dumps({"wall": t2 - t1, "cpu": c2 - c1, "setup": t1 - t0, "passed": outcomes.count("pass"),
+print(json.dumps({"wall": t2 - t1, "cpu": c2 - c1, "setup": t1 - t0, "engine_wall": engine_wall,
+                  "engine_cpu": engine_cpu, "passed": outcomes.count("pass"),
                   "refused": outcomes.count("refused"), "pending": outcomes.count("pending"),
                   "total": len(outcomes)}))
 """
@@ -152,16 +155,19 @@ def _installed(module: str) -> bool:
 
 
 def suite() -> None:
-    print("W3C SHACL test suite (tests/w3c-shacl), each engine in a fresh process")
-    print(f"{'engine':>14} {'wall s':>8} {'cpu s':>7} {'passed':>7} {'refused':>8} {'pending':>8} {'tests':>6}")
+    print("W3C SHACL test suite (tests/w3c-shacl), each engine in a fresh process; 'engine': reading each "
+          "test's data and shapes and validating, summed; 'all': with the comparison of reports")
+    print(f"{'engine':>14} {'engine s':>9} {'cpu':>6} {'all s':>7} {'cpu':>6} {'passed':>7} {'refused':>8} "
+          f"{'pending':>8} {'tests':>6}")
     rows = {}
     for engine in ("ours", "pyshacl"):
         r = _run(_SUITE, engine, str(ROOT / "tests"))
         rows[engine] = r
-        name = "stepnc-graph" if engine == "ours" else "pySHACL"
-        print(f"{name:>14} {r['wall']:>8.2f} {r['cpu']:>7.2f} {r['passed']:>7} {r['refused']:>8} {r['pending']:>8} "
-              f"{r['total']:>6}")
-    print(f"{'':>14} pySHACL / stepnc-graph: {rows['pyshacl']['cpu'] / rows['ours']['cpu']:.1f}x CPU\n", flush=True)
+        name = "stepnc-graph" if engine == "ours" else "pySHACL*"
+        print(f"{name:>14} {r['engine_wall']:>9.2f} {r['engine_cpu']:>6.2f} {r['wall']:>7.2f} {r['cpu']:>6.2f} "
+              f"{r['passed']:>7} {r['refused']:>8} {r['pending']:>8} {r['total']:>6}")
+    print(f"{'':>14} pySHACL / stepnc-graph: {rows['pyshacl']['engine_cpu'] / rows['ours']['engine_cpu']:.1f}x CPU "
+          f"(* pySHACL's passes counted by sh:conforms and the number of results only)\n", flush=True)
 
 
 def programs(args: argparse.Namespace) -> None:

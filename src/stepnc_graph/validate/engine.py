@@ -512,8 +512,11 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
                         tuple((n, s[n]) for n in keep if s[n] is not None)))
         return out
 
-    with ThreadPoolExecutor(CHECK_THREADS) as pool:
-        found = list(pool.map(evaluate, todo))
+    if len(todo) < 2 or CHECK_THREADS == 1:  # a thread pool costs more than one small check
+        found = [evaluate(item) for item in todo]
+    else:
+        with ThreadPoolExecutor(CHECK_THREADS) as pool:
+            found = list(pool.map(evaluate, todo))
     rows: list[Row] = []
     seen: set[tuple[str, ...]] = set()
     for (check, _), solutions in zip(todo, found, strict=True):
