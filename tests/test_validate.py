@@ -374,3 +374,11 @@ def test_oneof_checks_are_skipped_where_no_node_can_fail_them() -> None:
         [loaded] = api.load(store, [ROOT / "examples" / "shaft_two_setups.stp"], derived=False)
         _, ran = run(store.oxigraph, loaded.graph, oneof, frozenset(), shipped.hierarchy)
     assert ran == 0
+
+
+def test_the_shipped_checks_leave_the_position_triples_out() -> None:
+    """No shipped check reads p21:id/p21:line or any predicate: validate FILE loads without them (a
+    sixth fewer triples). A SELECT's projection of three variables is no triple pattern."""
+    from stepnc_graph.validate import _reads_positions, compile_shapes
+
+    assert not _reads_positions(compile_shapes(shape_files()).checks)
