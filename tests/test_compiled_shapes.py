@@ -11,7 +11,7 @@ import pytest
 
 from stepnc_graph.build import build
 from stepnc_graph.validate import CompiledShapesWarning, compile_shapes, shape_files, validate
-from stepnc_graph.validate.compiled import CACHE_FILE, StaleChecks, compile_texts, digest, loads
+from stepnc_graph.validate.compiled import CACHE_FILE, SUPPORT_FILE, StaleChecks, compile_texts, digest, hierarchy_of, loads
 from stepnc_graph.validate.shapes import ShapesGraph
 
 from conftest import ROOT
@@ -43,11 +43,12 @@ def shapes_copy(tmp_path: Path) -> Path:
 def test_shipped_checks_equal_a_fresh_compile() -> None:
     files = shape_files()
     named = _named(files, SHAPES)
-    shipped = loads((SHAPES / CACHE_FILE).read_text(encoding="utf-8"),
-                    digest([(n, t.encode("utf-8")) for n, t in named]))
-    _graph, fresh = compile_texts(named)
+    shipped, hierarchy = loads((SHAPES / CACHE_FILE).read_text(encoding="utf-8"),
+                               digest([(n, t.encode("utf-8")) for n, t in named]))
+    graph, fresh = compile_texts(named, frozenset(i for i, (n, _) in enumerate(named) if n == SUPPORT_FILE))
     assert len(shipped) > 1000
     assert list(shipped) == fresh
+    assert hierarchy == hierarchy_of(graph) and len(hierarchy[0]) > 100  # support.ttl's class hierarchy
 
 
 def test_blank_shapes_get_the_same_names_in_every_parse() -> None:

@@ -6,6 +6,8 @@
     print(result.instances, result.triples, result.diagnostics)
     turtle = sg.export(store, "ttl", result.graph)
     rows = sg.query(store, "tool-changes").rows     # a library query; keyword arguments are parameters
+    report = sg.validate(["part.stp"])               # SHACL: the ISO 14649 shapes and process rules
+    report = sg.validate(["data.ttl"], extra_shapes=["shapes.ttl"], iso_shapes=False)  # any RDF, any shapes
 """
 
 from __future__ import annotations

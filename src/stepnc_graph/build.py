@@ -81,9 +81,10 @@ def compiled_checks(generated: dict[str, str], shapes_directory: Path) -> str:
     texts = sorted(generated.items())
     texts += [(f"process/{p.name}", p.read_text(encoding="utf-8"))
               for p in sorted((shapes_directory / "process").glob("*.ttl"))]
-    _graph, checks = compiled.compile_texts(texts)
+    data = frozenset(i for i, (name, _) in enumerate(texts) if name == compiled.SUPPORT_FILE)
+    graph, checks = compiled.compile_texts(texts, data)
     value = compiled.digest([(name, text.encode("utf-8")) for name, text in texts])
-    return compiled.dumps([name for name, _ in texts], value, checks)
+    return compiled.dumps([name for name, _ in texts], value, checks, compiled.hierarchy_of(graph))
 
 
 def build(root: Path, check: bool = False) -> BuildResult:

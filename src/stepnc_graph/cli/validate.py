@@ -1,4 +1,5 @@
-"""`stepnc-graph validate`: check programs against the generated shapes, the process rules and your own."""
+"""`stepnc-graph validate`: check programs (or any RDF data) against the generated shapes, the process
+rules and your own."""
 
 from __future__ import annotations
 
@@ -32,6 +33,9 @@ from stepnc_graph.cli.common import (
               help="The lowest severity reported.")
 @click.option("--shapes", "extra", multiple=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="An extra SHACL shapes file (Turtle), e.g. an organisation's own rules (repeatable).")
+@click.option("--no-iso-shapes", "no_iso", is_flag=True,
+              help="Leave out the ISO 14649 shapes and process rules: only --shapes run (a general SHACL "
+                   "validator for any RDF data).")
 @click.option("--strict", is_flag=True, help="Stop at the first Part 21 syntax error (exit 2) instead of "
                                              "recovering and reporting it.")
 @click.option("--allow-service", is_flag=True,
@@ -39,15 +43,21 @@ from stepnc_graph.cli.common import (
                    "otherwise). Prints a warning.")
 @reports_errors
 def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: RemoteOptions, graphs: tuple[str, ...],
-                 fmt: str, severity: str, extra: tuple[Path, ...], strict: bool, allow_service: bool) -> None:
-    """Check Part 21 FILES (loaded into a throw-away store) or a store's graphs.
+                 fmt: str, severity: str, extra: tuple[Path, ...], strict: bool, no_iso: bool,
+                 allow_service: bool) -> None:
+    """Check FILES (loaded into a throw-away store) or a store's graphs.
 
-    Every result gives the instance (#id, entity, line), the attribute, the
-    value found, what was expected, the rule and its ISO clause. Problems the
-    loader finds (unknown entity, wrong parameter count or type, unresolved
-    reference, recovered syntax) are results too.
+    FILES are Part 21 programs (.stp, .step, .p21), JSON-LD program graphs
+    (.jsonld) or any RDF data (.ttl, .nt, .nq, .trig, .rdf; a file's graphs are
+    validated together). Every result gives the node (for a program: #id,
+    entity, line), the attribute or path, the value found, what was expected,
+    the rule and its ISO clause. Problems the loader finds (unknown entity,
+    wrong parameter count or type, unresolved reference, recovered syntax, an
+    ill-typed literal) are results too.
 
-    Exit codes: 0 conforms (no violation), 1 violations, 2 bad input or usage.
+    The Turtle and JSON reports carry SHACL's sh:conforms (false when there is
+    any result). Exit codes: 0 no violation (warnings and infos do not fail),
+    1 violations, 2 bad input, refused shapes or usage.
     """
     from stepnc_graph.sources import check_iri
     from stepnc_graph.validate import ShapesError, validate
@@ -66,12 +76,12 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         if in_store:
             with open_reader(store_path, remote) as store:
                 report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity,
-                                  allow_service=allow_service)
+                                  iso_shapes=not no_iso, allow_service=allow_service)
         else:
             report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
-                              allow_service=allow_service)
+                              iso_shapes=not no_iso, allow_service=allow_service)
     except (ShapesError, ValueError) as exc:
         raise UsageProblem(str(exc)) from None
     text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
     write_out(text, uchar=fmt != "text")
-    sys.exit(EXIT_OK if report.conforms else EXIT_NONCONFORMING)
+    sys.exit(EXIT_OK if report.passes else EXIT_NONCONFORMING)

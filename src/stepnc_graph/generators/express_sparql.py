@@ -17,9 +17,9 @@ focus nodes for which ``!(rule)`` is true -- those where the rule is FALSE.
 raises :class:`Untranslatable` with the reason; the generator lists those rules
 (``stepnc-graph ontology stats``) instead of emitting an approximation.
 
-The queries obey pySHACL's restrictions on SHACL-SPARQL (no VALUES; a sub-SELECT
-only where it does not mention ``$this``), so the reference engine and
-stepnc-graph's own run the same text.
+The queries are portable SHACL-SPARQL (SHACL 5.3.1: no VALUES, no MINUS, and
+every sub-SELECT returns ``$this``), so every conformant engine -- pySHACL, the
+Rust engines, stepnc-graph's own -- runs the same text.
 """
 
 from __future__ import annotations
@@ -316,7 +316,9 @@ class _Compiler:
         # The item is reached inside the OPTIONAL, from an always-bound root (an
         # item variable bound by an earlier OPTIONAL could be unbound here and
         # would then match anything). The representations' (item, dim) pairs are
-        # an uncorrelated sub-SELECT: evaluated once, not walked up from every item.
+        # an uncorrelated sub-SELECT: evaluated once, not walked up from every item. It returns
+        # $this (SHACL 5.3.1 requires every sub-SELECT to) without using it: unbound inside, it
+        # joins with every focus node, which is what substituting the focus node would give.
         item = self.fresh("item")
         reach = (f"{base.root} {'/'.join(base.steps)} {item} ." if base.steps
                  else f"FILTER(sameTerm({item}, {base.root}))")
@@ -326,7 +328,7 @@ class _Compiler:
         context = f"<{self.n.attribute('representation', 'context_of_items')}>"
         csd = f"<{self.n.attribute('geometric_representation_context', 'coordinate_space_dimension')}>"
         chain = self.using_chain(top, item)
-        pairs = (f"{{ SELECT DISTINCT {item} {dim} WHERE {{ {rep} {items} {top} . {chain} {rep} {context} {ctx} . "
+        pairs = (f"{{ SELECT DISTINCT $this {item} {dim} WHERE {{ {rep} {items} {top} . {chain} {rep} {context} {ctx} . "
                  f"{ctx} {csd} {dim} }} }}")
         self.scope.optionals.append(f"OPTIONAL {{ {pairs} {reach} }}" if not base.steps
                                     else f"OPTIONAL {{ {reach} {pairs} }}")

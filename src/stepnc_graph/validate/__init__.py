@@ -1,14 +1,17 @@
-"""Validate Part 21 programs against the generated shapes, the process rules and your own.
+"""Validate Part 21 programs -- or any RDF data -- against the generated shapes, the process rules
+and your own.
 
     import stepnc_graph as sg
     report = sg.validate(["part.stp"])                 # load into a throw-away store, then check
     report = sg.validate(store, graphs=[graph_iri])   # or check what a store holds
-    print(report.conforms, report.to_text())
+    report = sg.validate(["data.ttl"], extra_shapes=["shapes.ttl"], iso_shapes=False)  # any RDF, any shapes
+    print(report.conforms, report.passes, report.to_text())
 
 Shapes come from ``shapes/`` (generated ``*.ttl`` and the hand-written
-``shapes/process/*.ttl``) plus any ``extra_shapes`` files; they are compiled
-once per process (:mod:`.engine`) and run by the store. Loader diagnostics of
-the files loaded here are results too (severity Violation).
+``shapes/process/*.ttl``; left out with ``iso_shapes=False``) plus any
+``extra_shapes`` files; they are compiled once per process (:mod:`.engine`)
+and run by the store. Loader diagnostics of the files loaded here are results
+too (severity Violation).
 """
 
 from __future__ import annotations
@@ -25,18 +28,31 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.naming import P21_NS, instance_id
+from stepnc_graph.naming import DATA_BASE, P21_NS, instance_id
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.validate import compiled
+from stepnc_graph.validate import components as C
 from stepnc_graph.validate.compiled import CompiledShapesWarning
-from stepnc_graph.validate.engine import Check, Row, refuse_service, run
+from stepnc_graph.validate.engine import SHAPES_GRAPH, Check, Row, refuse_service, run
+from stepnc_graph.validate.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
 from stepnc_graph.validate.report import SEVERITIES, Result, ValidationReport
-from stepnc_graph.validate.shapes import RDF_FIRST, RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
+from stepnc_graph.validate.shapes import (
+    RDF_FIRST,
+    RDF_TYPE,
+    SH,
+    IllFormedShapes,
+    ShapesError,
+    ShapesGraph,
+    UnsupportedShapes,
+    literal_text,
+    sh,
+)
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
     from stepnc_graph.loader import LoadResult
 
-__all__ = ["CompiledShapes", "CompiledShapesWarning", "Result", "ShapesError", "ValidationReport", "shape_files", "validate"]
+__all__ = ["CompiledShapes", "CompiledShapesWarning", "DataError", "IllFormedShapes", "Result", "ShapesError",
+           "UnsupportedShapes", "ValidationReport", "shape_files", "validate"]
 
 SHAPES_NS = "https://w3id.org/stepnc-graph/shapes#"
 STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
@@ -61,14 +77,22 @@ def shape_files(shapes_dir: Path | None = None, process: bool = True) -> list[Pa
 class CompiledShapes:
     """The checks of a set of shape files, and their shapes graph, read on first use and only as far
     as needed: describing a result reads the files its check names (:attr:`Check.files`); finding
-    none reads no file at all."""
+    none reads no file at all. ``hierarchy``: the data files' subclasses and typed individuals
+    (class -> nodes), which the checks' class tests expand to."""
 
-    def __init__(self, files: Sequence[Path], checks: tuple[Check, ...], graph: ShapesGraph | None = None) -> None:
+    def __init__(self, files: Sequence[Path], checks: tuple[Check, ...], graph: ShapesGraph | None = None,
+                 hierarchy: tuple[dict[str, set[str]], dict[str, set[str]]] | None = None,
+                 data_positions: frozenset[int] = frozenset()) -> None:
         self.files = tuple(files)
         self.checks = checks
         self._graph = graph  # every file, when the shapes were compiled here
         self._partial = ShapesGraph()
         self._read: set[int] = set()
+        self.data_positions = data_positions
+        if hierarchy is None and graph is not None:
+            hierarchy = ({k: set(v) for k, v in graph.subclasses.items()},
+                         {k: {i for i in v if i.startswith("<")} for k, v in graph.instances.items()})
+        self.hierarchy = hierarchy or ({}, {})
 
     @property
     def graph(self) -> ShapesGraph:
@@ -81,7 +105,7 @@ class CompiledShapes:
         if self._graph is not None:
             return self._graph
         for position in sorted(set(positions) - self._read):
-            self._partial.add_file(self.files[position], position)
+            self._partial.add_file(self.files[position], position, data=position in self.data_positions)
             self._read.add(position)
         if len(self._read) == len(self.files):
             self._graph = self._partial
@@ -96,11 +120,13 @@ def _compiled(files: tuple[tuple[str, float], ...], directory: str) -> CompiledS
     except OSError as exc:
         raise ShapesError(f"{exc.filename}: {exc.strerror or exc}") from None
     names = compiled.relative_names(paths, Path(directory))
+    data = frozenset(i for i, p in enumerate(paths) if _is_support(p, Path(directory)))
     if names is not None:
         shipped = Path(directory) / compiled.CACHE_FILE
         try:
             text = shipped.read_text(encoding="utf-8")
-            return CompiledShapes(paths, compiled.loads(text, compiled.digest(list(zip(names, texts, strict=True)))))
+            checks, hierarchy = compiled.loads(text, compiled.digest(list(zip(names, texts, strict=True))))
+            return CompiledShapes(paths, checks, hierarchy=hierarchy, data_positions=data)
         except (OSError, compiled.StaleChecks) as exc:
             if paths == shape_files(Path(directory)):  # the shipped set itself: say why it is not used
                 reason = exc.strerror if isinstance(exc, OSError) else str(exc)
@@ -111,8 +137,16 @@ def _compiled(files: tuple[tuple[str, float], ...], directory: str) -> CompiledS
         decoded = [(str(p), t.decode("utf-8")) for p, t in zip(paths, texts, strict=True)]
     except UnicodeDecodeError as exc:
         raise ShapesError(f"shapes are not UTF-8: {exc}") from None
-    graph, checks = compiled.compile_texts(decoded)
-    return CompiledShapes(paths, tuple(checks), graph)
+    graph, compiled_checks = compiled.compile_texts(decoded, data)
+    return CompiledShapes(paths, tuple(compiled_checks), graph, data_positions=data)
+
+
+def _is_support(path: Path, directory: Path) -> bool:
+    """Whether ``path`` is the shipped ``support.ttl``: part of the data graph, not of the shapes."""
+    try:
+        return path.resolve() == (directory / compiled.SUPPORT_FILE).resolve()
+    except OSError:
+        return False
 
 
 def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> CompiledShapes:
@@ -131,45 +165,103 @@ def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> Comp
 
 def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shapes: Sequence[str | Path] = (),
              severity: str = "Info", lenient: bool = True, process: bool = True,
-             shapes_dir: Path | None = None, allow_service: bool = False) -> ValidationReport:
-    """Validate Part 21 files (loaded into a throw-away store) or graphs of a store.
+             shapes_dir: Path | None = None, iso_shapes: bool = True,
+             allow_service: bool = False) -> ValidationReport:
+    """Validate files (loaded into a throw-away store) or graphs of a store.
 
     ``source`` is a :class:`~stepnc_graph.store.GraphStore`, a
     :class:`~stepnc_graph.remote.RemoteStore` (whose graphs are copied into
-    memory and checked here) or an iterable of paths. ``severity`` is the lowest severity reported. Raises
-    :class:`ShapesError` for unreadable shapes and, with ``lenient=False``,
-    :class:`~stepnc_graph.part21.Part21SyntaxError` for a file that does not parse. A shape whose
-    SPARQL has a ``SERVICE`` clause is refused (ShapesError) unless ``allow_service``.
+    memory and checked here) or an iterable of paths: Part 21 programs, JSON-LD
+    program graphs, or any RDF file (``.ttl``, ``.nt``, ``.nq``, ``.trig``,
+    ``.rdf``: :mod:`.rdfdata`). ``iso_shapes=False`` leaves out the shipped
+    shapes (then ``extra_shapes`` are the shapes graph: a general SHACL
+    validator). ``severity`` is the lowest severity reported. Raises
+    :class:`ShapesError` for unreadable or refused shapes, :class:`DataError`
+    for an RDF file that does not parse and, with ``lenient=False``,
+    :class:`~stepnc_graph.part21.Part21SyntaxError` for a Part 21 file that does not parse. A shape whose SPARQL has a ``SERVICE``
+    clause is refused (ShapesError) unless ``allow_service``.
     """
     from stepnc_graph.store import GraphStore
 
     started = time.perf_counter()
-    files = shape_files(shapes_dir, process) + [Path(p) for p in extra_shapes]
+    files = (shape_files(shapes_dir, process) if iso_shapes else []) + [Path(p) for p in extra_shapes]
+    if not files:
+        raise ShapesError("no shapes: give --shapes FILE, or leave the ISO 14649 shapes in")
     compiled_shapes = compile_shapes(files, shapes_dir)
     shapes, checks = compiled_shapes, compiled_shapes.checks
     level = severity.capitalize()
     if level not in SEVERITIES:
         raise ValueError(f"severity must be one of {', '.join(s.lower() for s in SEVERITIES)}")
     refuse_service(list(checks), allow_service)  # before any file is loaded or graph copied
+    needs_shapes = any(f"<{SHAPES_GRAPH}>" in c.query for c in checks)
     if isinstance(source, GraphStore):
+        if needs_shapes and source.path is not None:
+            raise UnsupportedShapes("a SPARQL constraint reading $shapesGraph runs on files, not on a store "
+                                    "validated in place")
+        if needs_shapes:
+            _add_shapes_graph(source.oxigraph, shapes)
         report = _validate_store(source, graphs, shapes, list(checks), {})
     elif hasattr(source, "local_copy"):  # a remote store: its graphs are copied here and checked
         targets = list(graphs) if graphs is not None else program_graphs(source)
         with source.local_copy(targets) as copy:
+            if needs_shapes:
+                _add_shapes_graph(copy.oxigraph, shapes)
             report = _validate_store(copy, targets, shapes, list(checks), {})
     else:
-        from stepnc_graph.api import load
-
-        paths = list(source)  # type: ignore[call-overload]
-        with throwaway_store(paths) as store:
-            # shapes read the program graph only; positions come from the load unless a check reads them
-            loaded = load(store, paths, lenient=lenient, derived=False, positions=_reads_positions(checks))
-            diagnostics = {r.graph: r.diagnostics for r in loaded}
-            # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
-            mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
-            report = _validate_store(store, [r.graph for r in loaded], shapes, list(checks), diagnostics, mapped)
+        report = _validate_files([Path(p) for p in source], shapes, list(checks), lenient, needs_shapes,  # type: ignore[attr-defined]
+                                 iso_shapes)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
+
+
+def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Check], lenient: bool,
+                    needs_shapes: bool, iso_shapes: bool) -> ValidationReport:
+    """Load the files into a throw-away store (Part 21 by the loader, and JSON-LD program graphs
+    when the ISO shapes run; other RDF by :mod:`.rdfdata`) and check each file's graph."""
+    from stepnc_graph.api import load
+
+    rdf = [p for p in paths if rdf_format(p, programs=iso_shapes) is not None and not p.is_dir()]
+    programs = [p for p in paths if p not in rdf]
+    with throwaway_store(paths) as store:
+        if needs_shapes:
+            _add_shapes_graph(store.oxigraph, shapes)
+        # shapes read the program graph only; positions come from the load unless a check reads them
+        loaded = load(store, programs, lenient=lenient, derived=False, positions=_reads_positions(checks)) \
+            if programs else []
+        diagnostics = {r.graph: r.diagnostics for r in loaded}
+        # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
+        mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
+        data = [load_rdf(store.oxigraph, p, _rdf_graph(p, {r.graph for r in loaded})) for p in rdf]
+        order = {str(p): i for i, p in enumerate(paths)}
+        graphs = sorted([(order.get(r.path, 0), r.graph) for r in loaded] + [(order[str(d.path)], d.graph) for d in data])
+        return _validate_store(store, [g for _, g in graphs], shapes, checks, diagnostics, mapped,
+                               {d.graph: d for d in data})
+
+
+def _rdf_graph(path: Path, taken: set[str]) -> str:
+    """The graph an RDF data file is validated in: named by its file, as a program's is."""
+    from urllib.parse import quote
+
+    graph = DATA_BASE + quote(path.name, safe="")
+    n = 2
+    while graph in taken:
+        graph = f"{DATA_BASE}{quote(path.name, safe='')}-{n}"
+        n += 1
+    taken.add(graph)
+    return graph
+
+
+def _add_shapes_graph(store: ox.Store, shapes: CompiledShapes) -> None:
+    """The shapes files as the named graph ``$shapesGraph`` stands for (SHACL 5.3.1)."""
+    from stepnc_graph.validate.shapes import base_iri
+
+    target = ox.NamedNode(SHAPES_GRAPH)
+    for f in shapes.files:
+        try:
+            store.extend([ox.Quad(t.subject, t.predicate, t.object, target)
+                          for t in ox.parse(path=str(f), format=ox.RdfFormat.TURTLE, base_iri=base_iri(str(f)))])
+        except (SyntaxError, OSError) as exc:
+            raise ShapesError(f"{f}: {exc}") from None
 
 
 #: ``p21:id`` or ``p21:line`` in a query, as a full IRI or prefixed (any prefix: erring on the side of keeping them)
@@ -177,11 +269,20 @@ _POSITION_TERM = re.compile(r"(?:p21#|:)(?:id|line)\b")
 
 
 def _reads_positions(checks: Sequence[Check]) -> bool:
-    """Whether a check (an organisation's own SPARQL, say) reads ``p21:id``/``p21:line``: then the
-    throw-away graph keeps those triples; otherwise their lines come from the load (a sixth fewer
-    triples to insert; 100k instances, end to end, medians in one quiet hour: 4.2 s with them,
-    3.5-3.8 s without)."""
-    return any(_POSITION_TERM.search(c.query) for c in checks)
+    """Whether a check (an organisation's own SPARQL, say) may read ``p21:id``/``p21:line``: it
+    names them, reads any predicate (a variable in predicate position), or is ``sh:closed``. Then
+    the throw-away graph keeps those triples; otherwise their lines come from the load (a sixth
+    fewer triples to insert; 100k instances, end to end, medians in one quiet hour: 4.2 s with
+    them, 3.5-3.8 s without)."""
+    return any(_POSITION_TERM.search(c.query) or c.constraint == "closed"
+               or (c.sparql_node is not None and _ANY_PREDICATE.search(_PROJECTION.sub("SELECT ", c.query)))
+               for c in checks)
+
+
+#: a triple pattern whose predicate is a variable (after the subject, a variable or an IRI)
+_ANY_PREDICATE = re.compile(r"(?:[?$]\w+|<[^>\s]*>)\s+[?$]\w+\s+(?:[?$]\w+|<[^>\s]*>|\"|_:|\[|\d)")
+#: a SELECT's projection (``SELECT DISTINCT ?this ?item ?dim``: three variables, no triple pattern)
+_PROJECTION = re.compile(r"\bSELECT\b[^{]*?(?=\bWHERE\b|\{)", re.IGNORECASE)
 
 
 #: Input above this size is validated in a temporary on-disk store instead of memory: Oxigraph's
@@ -231,7 +332,8 @@ def _implied_skips(store: ox.Store, loaded: LoadResult) -> frozenset[str]:
 
 
 def _validate_store(store: object, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
-                    diagnostics: dict[str, list[Diagnostic]], mapped: Mapping[str, LoadResult] | None = None) -> ValidationReport:
+                    diagnostics: dict[str, list[Diagnostic]], mapped: Mapping[str, LoadResult] | None = None,
+                    data: Mapping[str, RdfLoad] | None = None) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
     ran = 0
@@ -241,16 +343,29 @@ def _validate_store(store: object, graphs: Sequence[str] | None, shapes: Compile
             raise ValueError(f"no graph {graph} in the store")
         loaded = mapped.get(graph) if mapped else None  # written by this call's Part 21 mapping
         rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, loaded) if loaded else frozenset(),
-                      allow_service=True)  # validate() refused what it must before
+                      shapes.hierarchy, allow_service=True)  # validate() refused what it must before
         ran += n
         describer = _Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
         results += describer.results(rows)
-        if graph in diagnostics:
+        if data and graph in data:
+            results += [_ill_typed_result(graph, bad) for bad in data[graph].ill_typed]
+        elif graph in diagnostics:
             results += [_diagnostic_result(graph, d) for d in diagnostics[graph] if d.code not in COVERED_BY_SHAPES]
         else:
             results += describer.raw_instances()
     results.sort(key=lambda r: r.sort_key)
     return ValidationReport(results, targets, ran)
+
+
+def _ill_typed_result(graph: str, bad: object) -> Result:
+    from stepnc_graph.validate.rdfdata import IllTyped
+
+    assert isinstance(bad, IllTyped)
+    lexical = literal_text(bad.literal)
+    datatype = bad.literal.rsplit("^^", 1)[-1]
+    return Result("Violation", graph, bad.subject.strip("<>"), None, None, None, _readable_path(bad.predicate), lexical,
+                  f"{lexical!r} is not a valid {_local(datatype)} literal", None, None, "loader:RDF-ILL-TYPED",
+                  path_iri=bad.predicate, value_term=bad.literal, focus_term=bad.subject)
 
 
 def _diagnostic_result(graph: str, d: Diagnostic) -> Result:
@@ -266,6 +381,25 @@ def _readable_path(path: str) -> str:
     text = re.sub(rf"<{re.escape(STEPNC_NS)}[^.>]*\.([^>]*)>", r"\1", path)
     text = re.sub(r"<[^>]*[#/]([^>#/]*)>", r"\1", text)
     return text[1:-1] if text.startswith("(") and text.endswith(")") and text.count("(") == 1 else text
+
+
+#: component IRI -> component, for default messages
+_COMPONENTS: dict[str, C.Component] = {comp.iri: comp for comp in C.REGISTRY}
+
+
+def _severity(term: str) -> str:
+    """sh:Violation, sh:Warning, sh:Info by name; any other severity IRI in full (SHACL 2.1.6)."""
+    iri = term.strip("<>")
+    return iri[len(SH):] if iri.startswith(SH) and iri[len(SH):] in SEVERITIES else iri
+
+
+def _preferred(messages: Sequence[str]) -> str:
+    """The message to show: one without a language tag, else English, else the first."""
+    if not messages:
+        return ""
+    plain = [m for m in messages if m.endswith('"') or '"^^' in m]
+    english = [m for m in messages if re.search(r'"@en(-[A-Za-z]+)?$', m)]
+    return literal_text((plain or english or list(messages))[0])
 
 
 def _local(term: str) -> str:
@@ -357,13 +491,31 @@ class _Describer:
         labels = (shape, c.parent) if c.parent else (shape,)
         clause = next((literal_text(v) for s in labels if (v := self.g.value(s, f"<{P21_NS}isoClause>"))), None)
         value = self.describe(row.value) if row.value is not None else None
-        path = _readable_path(c.path) if c.path else None
+        path_sparql: str | None
+        path_term: str | None
+        if row.path is not None:  # sh:closed, or a SPARQL solution's ?path
+            path_sparql = path_term = str(row.path)
+        else:
+            path_sparql, path_term = c.path, c.path_term
+        path = _readable_path(path_sparql) if path_sparql else None
+        messages = self.messages(row, value)
         return Result(
-            severity=_local(c.severity), graph=self.graph, focus=focus.strip("<>"), p21_id=ident, entity=entity,
-            line=line, path=path, value=value, message=self.message(row, value), rule=self.rule(c),
+            severity=_severity(c.severity), graph=self.graph, focus=focus.strip("<>"), p21_id=ident, entity=entity,
+            line=line, path=path, value=value, message=_preferred(messages), rule=self.rule(c),
             clause=clause, component=c.component.strip("<>"), shape=shape.strip("<>") if shape.startswith("<") else None,
-            path_iri=c.path,
-            value_term=str(row.value) if row.value is not None else None)
+            path_iri=path_sparql,
+            value_term=str(row.value) if row.value is not None else None,
+            focus_term=focus, shape_term=shape, path_term=path_term,
+            path_turtle=self.path_turtle(path_term) if path_term else None, message_terms=tuple(messages))
+
+    def path_turtle(self, term: str, depth: int = 0) -> str:
+        """A SHACL path node of the shapes graph written as Turtle (blank nodes nested)."""
+        if not term.startswith("_:") or depth > 20:
+            return term
+        if self.g.value(term, RDF_FIRST) is not None:
+            return "( " + " ".join(self.path_turtle(t, depth + 1) for t in self.g.items(term)) + " )"
+        parts = [f"{p} {self.path_turtle(o, depth + 1)}" for p in self.g.predicates(term) for o in self.g.objects(term, p)]
+        return "[ " + " ; ".join(parts) + " ]"
 
     def describe(self, value: object) -> str:
         text = str(value)
@@ -392,39 +544,39 @@ class _Describer:
                 return literal_text(name)
         return None
 
-    def message(self, row: Row, value: str | None) -> str:
-        """A plain-language message for the failed constraint."""
+    def messages(self, row: Row, value: str | None) -> list[str]:
+        """The result's messages as literals (N-Triples): the SPARQL constraint's or validator's
+        sh:message, else the shape's (SHACL 2.1.5), ``{$var}``/``{?var}`` replaced by the
+        solution's bindings or the component's parameters; else the component's own text."""
         c = row.check
-        found = f", found {value}" if value is not None else ""
-        arg = next(iter(self.g.objects(c.shape, sh(c.constraint))), None) if c.constraint != "sparql" else None
-        if c.constraint == "minCount" and arg is not None:
-            n = int(literal_text(arg))
-            return "required, found none" if n == 1 else f"at least {n} values required"
-        if c.constraint == "maxCount" and arg is not None:
-            own = self.g.value(c.shape, sh("message"))
-            return literal_text(own) if own else f"at most {literal_text(arg)} value(s) allowed"
-        if c.constraint == "class" and arg is not None:
-            return f"must be a {_local(arg)}{found}"
-        if c.constraint == "datatype" and arg is not None:
-            return f"must be an {_local(arg)} literal{found}"
-        if c.constraint == "in" and arg is not None:
-            items = ", ".join(_local(i).split(".")[-1] for i in self.g.items(arg))
-            return f"must be one of {items}{found}"
-        if c.constraint in ("minInclusive", "maxInclusive", "minExclusive", "maxExclusive") and arg is not None:
-            op = {"minInclusive": ">=", "maxInclusive": "<=", "minExclusive": ">", "maxExclusive": "<"}[c.constraint]
-            return f"must be {op} {literal_text(arg)}{found}"
-        if c.constraint == "node" and arg is not None:
-            comment = self.g.value(arg, RDFS_COMMENT)
-            if comment:
-                text = literal_text(comment).rstrip(".")
-                return f"must be a{text[1:]}" if text.startswith("A ") else text
-            kind = self.g.value(c.shape, f"<{P21_NS}expressType>")
-            return f"list members must fit {literal_text(kind)}" if kind else "does not conform to a nested shape"
-        for s in (c.sparql_node, c.shape, c.parent):
-            own = self.g.value(s, sh("message")) if s else None
+        for s in (c.sparql_node, c.shape):
+            own = self.g.objects(s, sh("message")) if s else []
             if own:
-                return literal_text(own)
-        return f"{_local(c.component)} not satisfied{found}"
+                return [self.fill(m, row) for m in own]
+        args = dict(c.args)
+        component = _COMPONENTS.get(c.component.strip("<>"))
+        text = component.message(self.g, args, value, c.shape) if component is not None and args else \
+            f"{_local(c.component)} not satisfied{f', found {value}' if value is not None else ''}"
+        return ['"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"']
+
+    def fill(self, message: str, row: Row) -> str:
+        """``{$name}`` and ``{?name}`` in a message literal replaced by the value they name."""
+        values: dict[str, str] = {"this": str(row.focus)}
+        if row.value is not None:
+            values["value"] = str(row.value)
+        if row.path is not None:
+            values["path"] = str(row.path)
+        values.update(row.check.args)
+        values.update((k, str(v)) for k, v in row.bindings)
+
+        def sub(m: re.Match[str]) -> str:
+            term = values.get(m.group(1))
+            if term is None:
+                return m.group(0)
+            shown = literal_text(term) if term.startswith('"') else term.strip("<>")
+            return shown.replace("\\", "\\\\").replace('"', '\\"')
+
+        return re.sub(r"\{[$?]([A-Za-z_][\w]*)\}", sub, message)
 
     def raw_instances(self) -> list[Result]:
         """Instances the loader kept raw (a store validated without its load's diagnostics)."""

@@ -26,9 +26,15 @@ from stepnc_graph.resources import sources_digest
 from stepnc_graph.validate.engine import Check, Compiler
 from stepnc_graph.validate.shapes import ShapesGraph
 
-FORMAT = 4  # 2: each check names the files that describe its results; 3: its argument and what implies it;
-# 4: "excludes" null for a check that always runs (was a flag "multi_typed_only" beside it)
+FORMAT = 5  # 2: each check names the files that describe its results; 3: its argument and what implies it;
+# 4: "excludes" null for a check that always runs (was a flag "multi_typed_only" beside it);
+# 5: queries with placeholders for the data's hierarchy, the support files' hierarchy beside the checks,
+# each check's target classes and component arguments
 CACHE_FILE = "compiled-checks.json"
+#: the shipped file whose triples are part of the data graph (class hierarchy, enumeration items' types)
+SUPPORT_FILE = "support.ttl"
+
+Hierarchy = tuple[dict[str, set[str]], dict[str, set[str]]]
 
 
 class CompiledShapesWarning(StepncGraphWarning):
@@ -44,15 +50,23 @@ def digest(named_texts: Sequence[tuple[str, bytes]]) -> str:
     return sources_digest(named_texts)
 
 
-def compile_texts(named_texts: Sequence[tuple[str, str]]) -> tuple[ShapesGraph, list[Check]]:
-    """The shapes graph of Turtle documents, in order, and its checks."""
+def compile_texts(named_texts: Sequence[tuple[str, str]],
+                  data_positions: frozenset[int] = frozenset()) -> tuple[ShapesGraph, list[Check]]:
+    """The shapes graph of Turtle documents, in order, and its checks; the documents at
+    ``data_positions`` belong to the data graph (``support.ttl``)."""
     from stepnc_graph.mapping.plan import iso14649_plans
     from stepnc_graph.validate.implied import mark
 
     graph = ShapesGraph()
     for position, (name, text) in enumerate(named_texts):
-        graph.add_text(text, name, position)
+        graph.add_text(text, name, position, data=position in data_positions)
     return graph, mark(Compiler(graph).checks(), graph, iso14649_plans())
+
+
+def hierarchy_of(graph: ShapesGraph) -> Hierarchy:
+    """The data files' subclasses and typed individuals (IRIs), class -> nodes."""
+    return ({k: set(v) for k, v in graph.subclasses.items()},
+            {k: {i for i in v if i.startswith("<")} for k, v in graph.instances.items() if v})
 
 
 class _ClassSets:
@@ -78,6 +92,8 @@ def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
         "other_targets": list(check.other_targets), "parent": check.parent, "sparql_node": check.sparql_node,
         "files": list(check.files), "argument": check.argument, "implied": check.implied,
         "excludes": None if check.excludes is None else sets.ref(check.excludes),
+        "target_classes": list(check.target_classes), "args": [list(a) for a in check.args],
+        "multiplicity": check.multiplicity,
     }
 
 
@@ -85,21 +101,26 @@ def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
     return Check(d["shape"], d["constraint"], d["component"], d["path"], d["path_term"], d["severity"], d["query"],
                  sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
                  d["parent"], d["sparql_node"], tuple(d["files"]), d["argument"], d["implied"],
-                 None if d["excludes"] is None else sets[d["excludes"]])
+                 None if d["excludes"] is None else sets[d["excludes"]], tuple(d["target_classes"]),
+                 tuple((a[0], a[1]) for a in d["args"]), d["multiplicity"])
 
 
-def dumps(names: Sequence[str], value: str, checks: Sequence[Check]) -> str:
+def dumps(names: Sequence[str], value: str, checks: Sequence[Check], hierarchy: Hierarchy) -> str:
     """The compiled-checks file: byte-stable (one check per line, keys sorted) for ``build --check``."""
     sets = _ClassSets()
     lines = [json.dumps(_encode(c, sets), sort_keys=True, ensure_ascii=False) for c in checks]
     head = json.dumps({"format": FORMAT, "files": list(names), "shapes_sha256": value}, sort_keys=True)
     table = ",\n".join(json.dumps(c, ensure_ascii=False) for c in sets.table())
-    return ("{\"header\": " + head + ",\n\"class_sets\": [\n" + table + "\n],\n\"checks\": [\n"
-            + ",\n".join(lines) + "\n]}\n")
+    subclasses, individuals = hierarchy
+    tree = json.dumps({k: sorted(v) for k, v in sorted(subclasses.items())}, ensure_ascii=False)
+    typed = json.dumps({k: sorted(v) for k, v in sorted(individuals.items())}, ensure_ascii=False)
+    return ("{\"header\": " + head + ",\n\"subclasses\": " + tree + ",\n\"individuals\": " + typed
+            + ",\n\"class_sets\": [\n" + table + "\n],\n\"checks\": [\n" + ",\n".join(lines) + "\n]}\n")
 
 
-def loads(text: str, value: str) -> tuple[Check, ...]:
-    """The checks of a compiled-checks file written for shape files of digest ``value``."""
+def loads(text: str, value: str) -> tuple[tuple[Check, ...], Hierarchy]:
+    """The checks of a compiled-checks file written for shape files of digest ``value``, and the
+    support files' hierarchy."""
     try:
         data = json.loads(text)
         header = data["header"]
@@ -108,7 +129,9 @@ def loads(text: str, value: str) -> tuple[Check, ...]:
         if header.get("shapes_sha256") != value:
             raise StaleChecks("the shape files changed since it was built")
         sets = [frozenset(c) for c in data["class_sets"]]
-        return tuple(_decode(d, sets) for d in data["checks"])
+        hierarchy = ({k: set(v) for k, v in data["subclasses"].items()},
+                     {k: set(v) for k, v in data["individuals"].items()})
+        return tuple(_decode(d, sets) for d in data["checks"]), hierarchy
     except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
         raise StaleChecks(f"it does not decode ({type(exc).__name__}: {exc})") from exc
 

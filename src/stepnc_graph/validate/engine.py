@@ -2,93 +2,97 @@
 
 Why not a SHACL library: pySHACL needs an rdflib copy of the data (about 28 s
 of parsing alone for 100k instances) and its SPARQL-based constraints run one
-query per focus node; measured in ``bench/validate_bench.py``. Here every
-constraint of every shape becomes **one** SELECT over the whole program graph,
-Oxigraph evaluates it in Rust on the data already in the store, and only the
-shapes whose target classes occur in the graph run. pySHACL stays the
-reference: the tests run it on the same shapes and data and require the same
-results.
+query per focus node; measured in ``bench/validate_bench.py``. Here every use
+of a constraint component in a targeted shape becomes **one** SELECT over the
+whole data graph, Oxigraph evaluates it in Rust on the data already in the
+store, and only the checks whose target classes occur in the graph run.
 
-How the SHACL semantics is kept:
+The compiler keeps what is common to all components -- targets (explicit and
+implicit class targets, SHACL 2.1.3), property paths (2.3.1), the nesting of
+shapes and the dispatch -- and each component (:mod:`.components`) writes its
+own queries. How the SHACL semantics is kept:
 
-* the class hierarchy (``shapes/support.ttl`` and any rdfs:subClassOf in the
-  shapes files) is part of the data graph in SHACL's sense; it is compiled into
-  the queries (``VALUES`` of the subclasses of a target or ``sh:class``), so it
-  is never written into the store;
-* a constraint that applies to value nodes is a FILTER on each value; nested
-  shapes (``sh:node``, ``sh:not``, ``sh:or``, ``sh:and``, ``sh:xone``) compile to
-  boolean SPARQL expressions ("the node conforms");
-* SHACL-SPARQL constraints run with ``$this`` bound by the target pattern (the
-  pre-binding of SHACL 5.3.1, for queries without sub-SELECTs, which is what the
-  generator writes); ``$PATH`` is replaced by the property shape's path.
+* **Class membership** uses the data graph's hierarchy: ``shapes/support.ttl``
+  (defined to be part of every data graph the shipped shapes run on) is compiled
+  in, and the data graph's own ``rdfs:subClassOf`` triples are read when the
+  checks run. Queries hold placeholders (``⟦CLASS ?v <C>⟧``, ``⟦FOCUS ?v⟧``,
+  ``⟦DATATYPE ?v <D>⟧``) expanded then, so compiled checks serve any data.
+  The shapes graph's own type and subclass triples are not data.
+* **Nesting.** ``sh:property`` of a property shape validates the value nodes
+  (its checks' focus pattern is the parent's value pattern); ``sh:node``,
+  ``sh:not``, ``sh:and``, ``sh:or``, ``sh:xone`` and ``sh:qualifiedValueShape``
+  compile the nested shape to a boolean SPARQL expression, or for ``sh:node``
+  to one query per way it can fail (Oxigraph joins those with the binding).
+* **Recursion** (a shape reaching itself through those parameters), which SHACL
+  leaves undefined, is refused with the cycle named (:class:`UnsupportedShapes`).
+* **SHACL-SPARQL** (:mod:`.sparql`): ``$this`` pre-bound by the focus pattern in
+  every group that needs it; the forms SHACL forbids refused.
 
-Supported SHACL: targets (targetClass, targetNode, targetSubjectsOf,
-targetObjectsOf), property paths, class, datatype, nodeKind, in, hasValue,
-min/max Inclusive/Exclusive, min/maxLength, pattern, minCount, maxCount, node,
-not, and, or, xone, sparql, severity, deactivated, message. Anything else
-raises :class:`ShapesError` rather than being skipped silently.
+Anything the engine does not run raises :class:`ShapesError` rather than being
+skipped silently.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import os
 import re
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
 import pyoxigraph as ox
 
 from stepnc_graph.outbound import OutboundRefused, refuse_outbound
-from stepnc_graph.validate.shapes import RDF_TYPE, SH, ShapesError, ShapesGraph, literal_text, sh
+from stepnc_graph.validate import components as C
+from stepnc_graph.validate.shapes import (
+    RDF_FIRST,
+    RDFS,
+    SH,
+    IllFormedShapes,
+    ShapesGraph,
+    UnsupportedShapes,
+    literal_text,
+    sh,
+)
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 P21_NS = "https://w3id.org/stepnc-graph/p21#"
-FOCUS = "FOCUS_PATTERN"
 TARGETS = ("targetClass", "targetNode", "targetSubjectsOf", "targetObjectsOf")
-VALUE_PARAMS = ("class", "datatype", "nodeKind", "in", "hasValue", "minInclusive", "maxInclusive",
-                "minExclusive", "maxExclusive", "minLength", "maxLength", "pattern", "node", "not", "and",
-                "or", "xone")
-KNOWN = set(VALUE_PARAMS) | {"minCount", "maxCount", "sparql", "property", "path", "severity", "message",
-                             "deactivated", "name", "description", "order", "group", "flags", *TARGETS,
-                             "prefixes", "declare", "select", "prefix", "namespace", "closed", "ignoredProperties"}
-COMPONENT = {
-    "class": "ClassConstraintComponent", "datatype": "DatatypeConstraintComponent",
-    "nodeKind": "NodeKindConstraintComponent", "in": "InConstraintComponent",
-    "hasValue": "HasValueConstraintComponent", "minInclusive": "MinInclusiveConstraintComponent",
-    "maxInclusive": "MaxInclusiveConstraintComponent", "minExclusive": "MinExclusiveConstraintComponent",
-    "maxExclusive": "MaxExclusiveConstraintComponent", "minLength": "MinLengthConstraintComponent",
-    "maxLength": "MaxLengthConstraintComponent", "pattern": "PatternConstraintComponent",
-    "node": "NodeConstraintComponent", "not": "NotConstraintComponent", "and": "AndConstraintComponent",
-    "or": "OrConstraintComponent", "xone": "XoneConstraintComponent", "minCount": "MinCountConstraintComponent",
-    "maxCount": "MaxCountConstraintComponent", "sparql": "SPARQLConstraintComponent",
-}
-FACET_OP = {"minInclusive": ">=", "maxInclusive": "<=", "minExclusive": ">", "maxExclusive": "<"}
-NODE_KINDS = {
-    "IRI": "isIRI({v})", "BlankNode": "isBlank({v})", "Literal": "isLiteral({v})",
-    "BlankNodeOrIRI": "(isIRI({v}) || isBlank({v}))", "BlankNodeOrLiteral": "(isBlank({v}) || isLiteral({v}))",
-    "IRIOrLiteral": "(isIRI({v}) || isLiteral({v}))",
-}
+#: the named graph a query reads as ``$shapesGraph`` (loaded only when a check names it)
+SHAPES_GRAPH = "urn:stepnc-graph:validate:shapes-graph"
+#: the named graph holding what the data's literals were before Oxigraph stored them (:mod:`.rdfdata`)
+LITERALS_GRAPH = "urn:stepnc-graph:validate:literals"
+LITERAL = "<urn:stepnc-graph:validate#literal>"
+ILL_TYPED = "<urn:stepnc-graph:validate#illTyped>"
+RDFS_CLASS = f"<{RDFS}Class>"
+OWL_IMPORTS = "<http://www.w3.org/2002/07/owl#imports>"
+SUBCLASS_OF = f"<{RDFS}subClassOf>"
+
+FOCUS_MARK = re.compile(r"⟦FOCUS (\?\w+)⟧")
+CLASS_MARK = re.compile(r"⟦CLASS (\?\w+) (<[^>]*>)⟧")
+DATATYPE_MARK = re.compile(r"⟦DATATYPE (\?\w+) (<[^>]*>)⟧")
 
 
 @dataclass(frozen=True)
 class Check:
-    """One constraint of one shape, as a SELECT yielding ``?this`` (and maybe ``?value``) per result."""
+    """One use of a component in a shape, as a SELECT yielding ``?this`` (and maybe ``?value``,
+    ``?path``) per result."""
 
     shape: str  # the source shape (N-Triples term)
-    constraint: str  # the parameter (class, minCount, sparql, ...)
+    constraint: str  # the component's key parameter (class, minCount, sparql, ...) or a custom component IRI
     component: str  # the constraint component IRI
     path: str | None  # SPARQL path text of a property shape
     path_term: str | None  # the sh:path term in the shapes graph
     severity: str
-    query: str  # holds FOCUS where the focus pattern goes
+    query: str  # holds the ⟦...⟧ placeholders expanded by :func:`run`
     classes: frozenset[str] = field(default=frozenset())  # target classes, subclasses included
-    closures: tuple[frozenset[str], ...] = ()  # one per sh:targetClass
+    closures: tuple[frozenset[str], ...] = ()  # one per class target (support hierarchy)
     other_targets: tuple[str, ...] = ()  # patterns binding ?this for the other kinds of target
-    parent: str | None = None  # the node shape holding a property shape
-    sparql_node: str | None = None  # the sh:sparql node (for its message)
+    parent: str | None = None  # the shape holding a property shape
+    sparql_node: str | None = None  # the sh:sparql node or validator (its messages)
     #: positions of the shape files that describe a result of this check (its shapes, the
     #: constraint's argument): describing reads only those
     files: tuple[int, ...] = ()
@@ -100,6 +104,13 @@ class Check:
     #: of the target classes listed here (a class below both sides, e.g. vertex_point): the check
     #: runs only then. None: a check that always runs
     excludes: frozenset[str] | None = None
+    #: the target classes themselves (closures are recomputed when the data graph has subclasses)
+    target_classes: tuple[str, ...] = ()
+    #: the component's parameter values (name, term), for messages
+    args: tuple[tuple[str, str], ...] = ()
+    #: a property shape nested in a property shape: a pattern binding ``?this`` once per way a
+    #: root focus node reaches it (a value node reached twice is validated, and reported, twice)
+    multiplicity: str | None = None
 
 
 class Compiler:
@@ -108,6 +119,9 @@ class Compiler:
     def __init__(self, graph: ShapesGraph) -> None:
         self.g = graph
         self.counter = itertools.count(1)
+        self.components: tuple[C.Component, ...] = (*C.REGISTRY, *C.custom_components(graph))
+        self._stack: list[str] = []
+        self._uses: dict[str, list[tuple[C.Component, C.Use]]] = {}
 
     def fresh(self, stem: str = "x") -> str:
         return f"?_{stem}{next(self.counter)}"
@@ -116,372 +130,332 @@ class Compiler:
 
     def checks(self) -> list[Check]:
         out: list[Check] = []
-        targeted = sorted({s for t in TARGETS for s in self.g.subjects(sh(t))})
-        for shape in targeted:
+        for shape in self.targeted():
             if self.deactivated(shape):
                 continue
-            out.extend(self.shape_checks(shape, shape, None))
+            root = self.root_focus
+            out.extend(self.shape_checks(shape, shape, root, None, (), None))
         return out
 
+    @staticmethod
+    def root_focus(var: str) -> str:
+        return f"⟦FOCUS {var}⟧"
+
+    def targeted(self) -> list[str]:
+        """Shapes with a target, explicit or implicit (a shape that is an rdfs:Class, SHACL 2.1.3.3)."""
+        found = {s for t in TARGETS for s in self.g.subjects(sh(t))}
+        found |= {s for s in self.g.instances_of(RDFS_CLASS) if self.implicit_class(s)}
+        return sorted(found)
+
+    def implicit_class(self, shape: str) -> bool:
+        return self.g.is_instance(shape, RDFS_CLASS) and (
+            self.g.is_instance(shape, sh("NodeShape")) or self.g.is_instance(shape, sh("PropertyShape")))
+
     def deactivated(self, shape: str) -> bool:
-        return self.g.value(shape, sh("deactivated")) == f'"true"^^<{XSD}boolean>'
+        return self.g.value(shape, sh("deactivated")) == C.TRUE
 
     def severity(self, shape: str) -> str:
-        return self.g.value(shape, sh("severity")) or sh("Violation")
+        value = self.g.value(shape, sh("severity"))
+        if value is not None and not value.startswith("<"):
+            raise IllFormedShapes(f"{shape}: sh:severity {value} is not an IRI")
+        return value or sh("Violation")
 
-    def targets(self, shape: str) -> tuple[tuple[frozenset[str], ...], tuple[str, ...]]:
-        """The class closures of the shape's targetClass, and patterns binding ``?this`` for its other targets."""
-        closures: list[frozenset[str]] = []
+    def targets(self, shape: str) -> tuple[tuple[str, ...], tuple[frozenset[str], ...], tuple[str, ...]]:
+        """The shape's target classes, their closures (support hierarchy) and patterns binding
+        ``?this`` for its other targets."""
+        classes = [c for c in self.g.objects(shape, sh("targetClass"))]
+        if self.implicit_class(shape):
+            classes.append(shape)
         parts: list[str] = []
-        for cls in self.g.objects(shape, sh("targetClass")):
+        closures: list[frozenset[str]] = []
+        for cls in classes:
+            if not cls.startswith("<"):
+                raise UnsupportedShapes(f"{shape}: a blank node as target class")
             closure = self.g.closure(cls)
             closures.append(frozenset(closure))
             individuals = sorted(self.g.typed_individuals(closure))
             if individuals:  # typed in the support graph (enumeration items)
                 parts.append(f"{{ VALUES ?this {{ {' '.join(individuals)} }} }}")
         for node in self.g.objects(shape, sh("targetNode")):
+            if node.startswith("_:"):
+                raise UnsupportedShapes(f"{shape}: a blank node as sh:targetNode")
             parts.append(f"{{ BIND({node} AS ?this) }}")
         for p in self.g.objects(shape, sh("targetSubjectsOf")):
-            parts.append(f"{{ SELECT DISTINCT ?this WHERE {{ ?this {p} ?_o }} }}")
+            parts.append(f"{{ SELECT DISTINCT ?this WHERE {{ ?this {self.iri(p, shape)} ?_o }} }}")
         for p in self.g.objects(shape, sh("targetObjectsOf")):
-            parts.append(f"{{ SELECT DISTINCT ?this WHERE {{ ?_s {p} ?this }} }}")
-        return tuple(closures), tuple(parts)
+            parts.append(f"{{ SELECT DISTINCT ?this WHERE {{ ?_s {self.iri(p, shape)} ?this }} }}")
+        return tuple(classes), tuple(closures), tuple(parts)
 
-    def shape_checks(self, shape: str, target_shape: str, parent: str | None) -> Iterator[Check]:
-        closures, others = self.targets(target_shape)
-        focus = FOCUS
-        classes = frozenset().union(*closures) if closures else frozenset()
+    @staticmethod
+    def iri(term: str, shape: str) -> str:
+        if not term.startswith("<"):
+            raise IllFormedShapes(f"{shape}: {term} must be an IRI")
+        return term
+
+    def uses(self, shape: str) -> list[tuple[C.Component, C.Use]]:
+        """Every use of a component in ``shape`` (its constraints), checked for what the engine runs."""
+        if shape in self._uses:
+            return self._uses[shape]
         self.check_known(shape)
-        severity = self.severity(shape)
-        path_term = self.g.value(shape, sh("path"))
+        paths = self.g.objects(shape, sh("path"))
+        if len(paths) > 1:
+            raise IllFormedShapes(f"{shape} has {len(paths)} values of sh:path")
+        path_term = paths[0] if paths else None
         path = self.path(path_term) if path_term is not None else None
+        out = [(comp, use) for comp in self.components for use in comp.uses(self.g, shape, path, path_term)]
+        self._uses[shape] = out
+        return out
 
-        def make(constraint: str, query: str, sparql_node: str | None = None, component: str | None = None,
-                 argument: str | None = None, excludes: frozenset[str] | None = None) -> Check:
-            return Check(shape, constraint, component or f"<{SH}{COMPONENT[constraint]}>", path, path_term,
-                         severity, query, classes, closures, others, parent, sparql_node,
-                         self.describing_files(shape, parent, constraint, sparql_node), argument, None, excludes)
-
-        value = "?value"
-        values = f"?this {path} ?value ." if path is not None else "BIND(?this AS ?value)"
-        for param in VALUE_PARAMS:
-            for arg in self.g.objects(shape, sh(param)):
-                if param == "node":
-                    # one query per way the nested shape can fail: Oxigraph evaluates
-                    # FILTER (NOT) EXISTS over property paths without the outer
-                    # binding (quadratic), positive joins and OPTIONALs with it
-                    patterns = self.witnesses(arg, value)
-                    if patterns is not None:
-                        for w in patterns:
-                            yield make(param, f"SELECT DISTINCT ?this ?value WHERE {{ {focus} {values} {w} }}",
-                                       argument=arg)
-                        continue
-                ok = self.value_ok(param, arg, value, shape, path)
-                excluded = self.excluded_classes(arg) if param == "not" and path is None and not others else None
-                if excluded is not None and classes:
-                    yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}",
-                               argument=arg, excludes=excluded & classes)
+    def shape_checks(self, shape: str, target_shape: str, focus: Callable[[str], str], parent: str | None,
+                     trail: tuple[str, ...], chain: Callable[[str], str] | None) -> Iterator[Check]:
+        """The checks of ``shape``, its focus nodes bound by ``focus(var)``; nested property shapes
+        get the value nodes of their parent as focus nodes (SHACL 4.7.2); ``chain(var)`` binds them
+        once per way they are reached (None: each focus node once)."""
+        if shape in trail:
+            raise UnsupportedShapes(f"recursive shapes (sh:property): {' -> '.join((*trail, shape))}")
+        target_classes, closures, others = self.targets(target_shape)
+        classes = frozenset().union(*closures) if closures else frozenset()
+        severity = self.severity(shape)
+        for comp, use in self.uses(shape):
+            if isinstance(comp, C.PropertyComponent):
+                prop = use.args["property"]
+                if self.deactivated(prop):
                     continue
-                if param == "hasValue" and path is not None:
-                    yield make(param, f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} {arg} }} }}",
-                               argument=arg)
-                    continue
-                yield make(param, f"SELECT ?this ?value WHERE {{ {focus} {values} FILTER(!({ok})) }}", argument=arg)
-        if path is not None:
-            for arg in self.g.objects(shape, sh("minCount")):
-                n = int(literal_text(arg))
-                if n == 1:
-                    q = f"SELECT ?this WHERE {{ {focus} FILTER NOT EXISTS {{ ?this {path} ?_v }} }}"
+                if use.path is None:
+                    nested, nested_chain = focus, chain
                 else:
-                    q = (f"SELECT ?this WHERE {{ {{ SELECT ?this (COUNT(DISTINCT ?_v) AS ?_n) WHERE {{ {focus} "
-                         f"OPTIONAL {{ ?this {path} ?_v }} }} GROUP BY ?this }} FILTER(?_n < {n}) }}")
-                if n > 0:
-                    yield make("minCount", q, argument=arg)
-            for arg in self.g.objects(shape, sh("maxCount")):
-                n = int(literal_text(arg))
-                q = (f"SELECT ?this WHERE {{ {focus} ?this {path} ?_v }} GROUP BY ?this "
-                     f"HAVING (COUNT(DISTINCT ?_v) > {n})")
-                yield make("maxCount", q, argument=arg)
-        for node in self.g.objects(shape, sh("sparql")):
-            if self.deactivated(node):
+                    nested = self.value_focus(focus, use.path, True)
+                    nested_chain = self.value_focus(chain or focus, use.path, False)
+                yield from self.shape_checks(prop, target_shape, nested, shape, (*trail, shape), nested_chain)
                 continue
-            yield make("sparql", self.sparql_query(node, focus, path), node)
-        for prop in self.g.objects(shape, sh("property")):
-            if not self.deactivated(prop):
-                yield from self.shape_checks(prop, target_shape, shape)
+            self._stack = []
+            for v in comp.violations(self, use, focus("?this")):
+                yield Check(shape, comp.key or comp.iri, f"<{comp.iri}>", use.path, use.path_term, severity,
+                            v.query, classes, closures, others, parent, v.node,
+                            self.describing_files(shape, parent, use, v.node), use.args.get(comp.key), None,
+                            v.excludes & classes if v.excludes is not None and classes and not others else None,
+                            target_classes, tuple(use.args.items()),
+                            chain("?this") if chain is not None else None)
 
-    def describing_files(self, shape: str, parent: str | None, constraint: str, sparql_node: str | None) -> tuple[int, ...]:
-        """The files a result of this check is described from: those of its shape, the node shape
-        holding it, its sh:sparql node and the constraint's arguments."""
-        nodes = [shape, parent, sparql_node, *self.g.objects(shape, sh(constraint))]
+    def value_focus(self, focus: Callable[[str], str], path: str, distinct: bool) -> Callable[[str], str]:
+        """The focus pattern of a property shape nested in a property shape: the parent's value
+        nodes (``distinct``: each once)."""
+        outer = self.fresh("f")
+        select = "SELECT DISTINCT" if distinct else "SELECT"
+        return lambda var: f"{{ {select} {var} WHERE {{ {focus(outer)} {outer} {path} {var} }} }}"
+
+    def describing_files(self, shape: str, parent: str | None, use: C.Use, node: str | None) -> tuple[int, ...]:
+        """The files a result of this check is described from: those of its shape, the shape
+        holding it, its SPARQL node and the constraint's arguments."""
+        nodes = [shape, parent, node, *use.args.values()]
         return tuple(sorted({self.g.origin[n] for n in nodes if n is not None and n in self.g.origin}))
-
-    def excluded_classes(self, shape: str) -> frozenset[str] | None:
-        """When ``shape`` is ``sh:class`` or ``sh:or`` of ``sh:class`` only: every class it admits
-        (subclasses included); None for any other shape.
-
-        Then ``sh:not shape`` on a node with one rdf:type fails only if that
-        type is one of them: a graph whose nodes have one type each, none of
-        them admitted, needs no query (:func:`run`).
-        """
-        alternatives = [shape]
-        ors = self.g.objects(shape, sh("or"))
-        if ors:
-            alternatives = self.g.items(ors[0])
-            if set(self.g.predicates(shape)) - {RDF_TYPE} != {sh("or")}:
-                return None
-        admitted: set[str] = set()
-        for alt in alternatives:
-            if set(self.g.predicates(alt)) - {RDF_TYPE} != {sh("class")}:
-                return None
-            admitted |= self.g.closure(self.g.objects(alt, sh("class"))[0])
-        return frozenset(admitted)
 
     def check_known(self, shape: str) -> None:
         for p in self.g.predicates(shape):
             if p.startswith(f"<{SH}"):
                 name = p[len(SH) + 1:-1]
-                if name not in KNOWN:
-                    raise ShapesError(f"{shape} uses sh:{name}, which stepnc-graph's engine does not run")
+                if name not in C.PARAMETERS and name not in C.NON_VALIDATING:
+                    raise UnsupportedShapes(f"{shape} uses sh:{name}, which stepnc-graph's engine does not run")
 
-    # -- paths --------------------------------------------------------------------------------
+    # -- nested shapes ----------------------------------------------------------------------
 
-    def path(self, term: str) -> str:
-        """A SHACL property path as SPARQL path syntax."""
+    def _enter(self, shape: str) -> None:
+        if shape in self._stack:
+            cycle = self._stack[self._stack.index(shape):] + [shape]
+            raise UnsupportedShapes("recursive shapes, which SHACL leaves undefined: " + " -> ".join(cycle))
+        self._stack.append(shape)
+
+    def conforms(self, shape: str, v: str) -> str:
+        """SPARQL boolean: node ``v`` conforms to ``shape`` (every constraint, property shapes included)."""
+        if self.deactivated(shape):
+            return "true"
+        self._enter(shape)
+        try:
+            tests = [comp.holds(self, use, v) for comp, use in self.uses(shape)]
+        finally:
+            self._stack.pop()
+        tests = [t for t in tests if t != "true"]
+        return "(" + " && ".join(tests) + ")" if tests else "true"
+
+    def witnesses(self, shape: str, v: str) -> list[str] | None:
+        """Graph patterns, one per way node ``v`` can fail ``shape``: ``v`` fails iff one matches.
+        None when a constraint has only the boolean form (:meth:`conforms`)."""
+        if self.deactivated(shape):
+            return []
+        self._enter(shape)
+        try:
+            out: list[str] = []
+            for comp, use in self.uses(shape):
+                found = comp.witnesses(self, use, v)
+                if found is None:
+                    return None
+                out += found
+            return out
+        finally:
+            self._stack.pop()
+
+    # -- terms the components need ----------------------------------------------------------------
+
+    def class_test(self, v: str, cls: str) -> str:
+        if not cls.startswith("<"):
+            raise UnsupportedShapes(f"a blank node ({cls}) as the value of sh:class")
+        return f"⟦CLASS {v} {cls}⟧"
+
+    def datatype_test(self, v: str, datatype: str) -> str:
+        if not datatype.startswith("<"):
+            raise IllFormedShapes(f"sh:datatype {datatype} is not an IRI")
+        return f"⟦DATATYPE {v} {datatype}⟧"
+
+    def prefixes(self, node: str) -> dict[str, str]:
+        """The prefixes a SPARQL query may use (SHACL 5.2.1): the sh:declare values of its
+        sh:prefixes nodes and of what those import (owl:imports), in the shapes graph."""
+        out: dict[str, str] = {}
+        owners = list(self.g.objects(node, sh("prefixes")))
+        seen: set[str] = set()
+        while owners:
+            owner = owners.pop(0)
+            if owner in seen:
+                continue
+            seen.add(owner)
+            owners += self.g.objects(owner, OWL_IMPORTS)
+            for decl in self.g.objects(owner, sh("declare")):
+                prefix = self.g.value(decl, sh("prefix"))
+                ns = self.g.value(decl, sh("namespace"))
+                if prefix is None or ns is None:
+                    raise IllFormedShapes(f"{owner}: an sh:declare without sh:prefix and sh:namespace")
+                out[literal_text(prefix)] = literal_text(ns)
+        return out
+
+    def shapes_graph_iri(self) -> str:
+        return f"<{SHAPES_GRAPH}>"
+
+    def path(self, term: str, seen: frozenset[str] = frozenset()) -> str:
+        """A SHACL property path (2.3.1) as SPARQL path syntax."""
         if term.startswith("<"):
             return term
-        if self.g.value(term, "<http://www.w3.org/1999/02/22-rdf-syntax-ns#first>") is not None:
-            return "(" + "/".join(self.path(t) for t in self.g.items(term)) + ")"
+        if term.startswith('"') or term in seen:
+            raise IllFormedShapes(f"{term} is not a SHACL property path")
+        seen = seen | {term}
+        if self.g.value(term, RDF_FIRST) is not None:
+            items = self.g.items(term)
+            if len(items) < 2:
+                raise IllFormedShapes(f"a sequence path needs two members at least: {term}")
+            return "(" + "/".join(self.path(t, seen) for t in items) + ")"
         for kind, fmt in (("inversePath", "^{}"), ("zeroOrMorePath", "{}*"), ("oneOrMorePath", "{}+"),
                           ("zeroOrOnePath", "{}?")):
             inner = self.g.value(term, sh(kind))
             if inner is not None:
-                return "(" + fmt.format(self.path(inner)) + ")"
+                return "(" + fmt.format(self.path(inner, seen)) + ")"
         alt = self.g.value(term, sh("alternativePath"))
         if alt is not None:
-            return "(" + "|".join(self.path(t) for t in self.g.items(alt)) + ")"
-        raise ShapesError(f"unsupported property path {term}")
-
-    # -- value constraints as boolean SPARQL expressions ------------------------------------
-
-    def value_ok(self, param: str, arg: str, v: str, shape: str, path: str | None) -> str:
-        """SPARQL boolean: value ``v`` meets ``sh:param arg``."""
-        if param == "class":
-            closure = " ".join(sorted(self.g.closure(arg)))
-            t = self.fresh("t")
-            test = f"EXISTS {{ {v} {RDF_TYPE} {t} . VALUES {t} {{ {closure} }} }}"
-            individuals = sorted(self.g.typed_individuals(self.g.closure(arg)))
-            return f"({test} || {v} IN ({', '.join(individuals)}))" if individuals else test
-        if param == "datatype":
-            return f"(isLiteral({v}) && sameTerm(datatype({v}), {arg}))"
-        if param == "nodeKind":
-            kind = arg[len(SH) + 1:-1]
-            return NODE_KINDS[kind].format(v=v)
-        if param == "in":
-            items = self.g.items(arg)
-            if all(i.startswith("<") for i in items):
-                return f"({v} IN ({', '.join(items)}))"
-            return "(" + " || ".join(f"sameTerm({v}, {i})" for i in items) + ")" if items else "false"
-        if param == "hasValue":
-            return f"sameTerm({v}, {arg})"
-        if param in FACET_OP:
-            return f"COALESCE({v} {FACET_OP[param]} {arg}, false)"
-        if param in ("minLength", "maxLength"):
-            op = ">=" if param == "minLength" else "<="
-            return f"(!isBlank({v}) && COALESCE(STRLEN(STR({v})) {op} {literal_text(arg)}, false))"
-        if param == "pattern":
-            flags = self.g.value(shape, sh("flags"))
-            extra = f", {flags}" if flags else ""
-            return f"(!isBlank({v}) && COALESCE(REGEX(STR({v}), {arg}{extra}), false))"
-        if param == "node":
-            return self.conforms(arg, v)
-        if param == "not":
-            return f"!{self.conforms(arg, v)}"
-        members = [self.conforms(s, v) for s in self.g.items(arg)]
-        if param == "and":
-            return "(" + " && ".join(members) + ")" if members else "true"
-        if param == "or":
-            return "(" + " || ".join(members) + ")" if members else "false"
-        if param == "xone":
-            counts = " + ".join(f"IF({m}, 1, 0)" for m in members)
-            return f"(({counts}) = 1)" if members else "false"
-        raise ShapesError(f"unsupported constraint sh:{param}")
-
-    def witnesses(self, shape: str, v: str) -> list[str] | None:
-        """Graph patterns, one per way node ``v`` can fail ``shape``: ``v`` fails iff one matches.
-
-        None when the shape needs a logical combination (not/and/or/xone) or
-        counts above one, which stay boolean expressions (:meth:`conforms`).
-        """
-        self.check_known(shape)
-        if self.deactivated(shape):
-            return []
-        out: list[str] = []
-        path_term = self.g.value(shape, sh("path"))
-        for param in VALUE_PARAMS:
-            for arg in self.g.objects(shape, sh(param)):
-                if path_term is not None:
-                    continue
-                if param in ("not", "and", "or", "xone"):
-                    return None
-                if param == "node":
-                    inner = self.witnesses(arg, v)
-                    if inner is None:
-                        return None
-                    out += inner
-                else:
-                    out.append(f"FILTER(!({self.value_ok(param, arg, v, shape, None)}))")
-        if path_term is not None:
-            path = self.path(path_term)
-            for arg in self.g.objects(shape, sh("minCount")):
-                n = int(literal_text(arg))
-                if n > 1:
-                    return None
-                if n == 1:
-                    x = self.fresh("m")
-                    out.append(f"OPTIONAL {{ {v} {path} {x} }} FILTER(!bound({x}))")
-            for arg in self.g.objects(shape, sh("maxCount")):
-                xs = [self.fresh("c") for _ in range(int(literal_text(arg)) + 1)]
-                distinct = " && ".join(f"!sameTerm({a}, {b})" for a, b in itertools.combinations(xs, 2))
-                out.append(" ".join(f"{v} {path} {x} ." for x in xs) + (f" FILTER({distinct})" if distinct else ""))
-            for param in VALUE_PARAMS:
-                for arg in self.g.objects(shape, sh(param)):
-                    x = self.fresh("pv")
-                    if param in ("not", "and", "or", "xone"):
-                        return None
-                    if param == "hasValue":
-                        m = self.fresh("m")
-                        out.append(f"OPTIONAL {{ {v} {path} {m} FILTER(sameTerm({m}, {arg})) }} FILTER(!bound({m}))")
-                    elif param == "node":
-                        inner = self.witnesses(arg, x)
-                        if inner is None:
-                            return None
-                        out += [f"{v} {path} {x} . {w}" for w in inner]
-                    else:
-                        out.append(f"{v} {path} {x} . FILTER(!({self.value_ok(param, arg, x, shape, path)}))")
-        for node in self.g.objects(shape, sh("sparql")):
-            out.append(self.sparql_body(node, v, self.path(path_term) if path_term else None))
-        for prop in self.g.objects(shape, sh("property")):
-            inner = self.witnesses(prop, v)
-            if inner is None:
-                return None
-            out += inner
-        return out
-
-    def conforms(self, shape: str, v: str) -> str:
-        """SPARQL boolean: node ``v`` conforms to ``shape`` (every constraint, property shapes included)."""
-        self.check_known(shape)
-        if self.deactivated(shape):
-            return "true"
-        tests: list[str] = []
-        path_term = self.g.value(shape, sh("path"))
-        if path_term is None:
-            for param in VALUE_PARAMS:
-                tests += [self.value_ok(param, arg, v, shape, None) for arg in self.g.objects(shape, sh(param))]
-        else:
-            tests += self.property_ok(shape, self.path(path_term), v)
-        for node in self.g.objects(shape, sh("sparql")):
-            body = self.sparql_body(node, v, self.path(path_term) if path_term else None)
-            tests.append(f"NOT EXISTS {{ {body} }}")
-        for prop in self.g.objects(shape, sh("property")):
-            if not self.deactivated(prop):
-                tests.append(self.conforms(prop, v))
-        return "(" + " && ".join(tests) + ")" if tests else "true"
-
-    def property_ok(self, shape: str, path: str, v: str) -> list[str]:
-        tests: list[str] = []
-        for arg in self.g.objects(shape, sh("minCount")):
-            tests.append(self.at_least(v, path, int(literal_text(arg))))
-        for arg in self.g.objects(shape, sh("maxCount")):
-            tests.append(f"!{self.at_least(v, path, int(literal_text(arg)) + 1)}")
-        for param in VALUE_PARAMS:
-            for arg in self.g.objects(shape, sh(param)):
-                if param == "hasValue":
-                    tests.append(f"EXISTS {{ {v} {path} {arg} }}")
-                    continue
-                x = self.fresh("pv")
-                tests.append(f"NOT EXISTS {{ {v} {path} {x} . FILTER(!({self.value_ok(param, arg, x, shape, path)})) }}")
-        return tests
-
-    def at_least(self, v: str, path: str, n: int) -> str:
-        if n <= 0:
-            return "true"
-        xs = [self.fresh("c") for _ in range(n)]
-        pattern = " ".join(f"{v} {path} {x} ." for x in xs)
-        distinct = " && ".join(f"!sameTerm({a}, {b})" for a, b in itertools.combinations(xs, 2))
-        return f"EXISTS {{ {pattern}{f' FILTER({distinct})' if distinct else ''} }}"
-
-    # -- SHACL-SPARQL -----------------------------------------------------------------------
-
-    def prefixes(self, node: str) -> str:
-        lines = []
-        for owner in self.g.objects(node, sh("prefixes")):
-            for decl in self.g.objects(owner, sh("declare")):
-                prefix = literal_text(self.g.value(decl, sh("prefix")) or "")
-                ns = literal_text(self.g.value(decl, sh("namespace")) or "")
-                lines.append(f"PREFIX {prefix}: <{ns}>")
-        return " ".join(lines)
-
-    def select_text(self, node: str) -> str:
-        select = self.g.value(node, sh("select"))
-        if select is None:
-            raise ShapesError(f"{node}: a SPARQL constraint without sh:select")
-        text = literal_text(select).replace("\\n", "\n").replace("\\t", "\t")
-        if re.search(r"\$(currentShape|shapesGraph)\b", text):
-            raise ShapesError(f"{node}: $currentShape and $shapesGraph are not supported")
-        return text
-
-    def sparql_query(self, node: str, focus: str, path: str | None) -> str:
-        """The constraint's SELECT with the focus pattern put first in its WHERE clause."""
-        text = self.select_text(node)
-        if path is not None:
-            text = text.replace("$PATH", path)
-        text = re.sub(r"\$this\b", "?this", text)
-        where = re.search(r"\bWHERE\s*\{", text, re.IGNORECASE) or re.search(r"\{", text)
-        if where is None:
-            raise ShapesError(f"{node}: no WHERE clause")
-        text = f"{text[:where.end()]} {focus} {text[where.end():]}"
-        return f"{self.prefixes(node)} {text}"
-
-    def sparql_body(self, node: str, v: str, path: str | None) -> str:
-        """The WHERE group of a SPARQL constraint used inside a nested shape, ``$this`` := ``v``."""
-        text = self.select_text(node)
-        if path is not None:
-            text = text.replace("$PATH", path)
-        if self.prefixes(node):
-            text = self.expand_prefixes(node, text)
-        start = text.index("{", re.search(r"\bWHERE\b", text, re.IGNORECASE).end())  # type: ignore[union-attr]
-        end = text.rindex("}")
-        return re.sub(r"\$this\b", v, text[start + 1:end])
-
-    def expand_prefixes(self, node: str, text: str) -> str:
-        for owner in self.g.objects(node, sh("prefixes")):
-            for decl in self.g.objects(owner, sh("declare")):
-                prefix = literal_text(self.g.value(decl, sh("prefix")) or "")
-                ns = literal_text(self.g.value(decl, sh("namespace")) or "")
-                text = re.sub(rf"(?<![\w<]){prefix}:([A-Za-z_][\w.-]*\w|[A-Za-z_])", rf"<{ns}\1>", text)
-        return text
+            items = self.g.items(alt)
+            if len(items) < 2:
+                raise IllFormedShapes(f"an alternative path needs two members at least: {term}")
+            return "(" + "|".join(self.path(t, seen) for t in items) + ")"
+        raise IllFormedShapes(f"{term} is not a SHACL property path")
 
 
 @dataclass(frozen=True)
 class Row:
-    """One raw result of a check: the focus node and value (pyoxigraph terms)."""
+    """One raw result of a check: the focus node, value and path (pyoxigraph terms), and for a
+    SPARQL-based check the solution's other bindings (its message may name them)."""
 
     check: Check
     focus: ox.NamedNode | ox.BlankNode | ox.Literal
     value: ox.NamedNode | ox.BlankNode | ox.Literal | None
+    path: ox.NamedNode | None = None
+    bindings: tuple[tuple[str, Any], ...] = ()
 
 
-def focus_pattern(check: Check, present: set[str]) -> str | None:
-    """The pattern binding ``?this`` to the check's focus nodes in a graph with classes ``present``.
+class Hierarchy:
+    """The data graph's class hierarchy for one run: the compiled one (support files) and the data
+    graph's own rdfs:subClassOf triples; individuals the support files type."""
 
-    Only the target classes that occur are listed (a smaller join); None when
-    the check has no focus node there.
-    """
-    parts = [f"{{ ?this a ?_t . VALUES ?_t {{ {' '.join(sorted(c & present))} }} }}"
-             for c in check.closures if c & present]
-    parts += check.other_targets
-    return " UNION ".join(parts) if parts else None
+    def __init__(self, subclasses: dict[str, set[str]], individuals: dict[str, set[str]],
+                 data_edges: list[tuple[str, str]]) -> None:
+        self.subclasses: dict[str, set[str]] = {k: set(v) for k, v in subclasses.items()}
+        for sub, sup in data_edges:
+            self.subclasses.setdefault(sup, set()).add(sub)
+        self.individuals = individuals
+        self.extended = bool(data_edges)
+        self._closures: dict[str, frozenset[str]] = {}
+
+    def closure(self, cls: str) -> frozenset[str]:
+        found = self._closures.get(cls)
+        if found is None:
+            out = {cls}
+            stack = [cls]
+            while stack:
+                for sub in self.subclasses.get(stack.pop(), ()):
+                    if sub not in out:
+                        out.add(sub)
+                        stack.append(sub)
+            found = self._closures[cls] = frozenset(out)
+        return found
+
+    def typed(self, classes: frozenset[str]) -> list[str]:
+        return sorted({i for c in classes for i in self.individuals.get(c, ())})
+
+
+@dataclass
+class RunContext:
+    """What the placeholders of a check expand to in one data graph."""
+
+    hierarchy: Hierarchy
+    present: set[str]
+    literals: bool  # the store holds LITERALS_GRAPH (data loaded by :mod:`.rdfdata`)
+
+    def closures(self, check: Check) -> tuple[frozenset[str], ...]:
+        if not self.hierarchy.extended:
+            return check.closures
+        return tuple(self.hierarchy.closure(c) for c in check.target_classes)
+
+    def focus(self, check: Check, var: str, k: int) -> str | None:
+        t = f"?_t{k}"
+        parts = [f"{{ {var} a {t} . VALUES {t} {{ {' '.join(sorted(c & self.present))} }} }}"
+                 for c in self.closures(check) if c & self.present]
+        parts += [re.sub(r"\?this\b", var, p) for p in check.other_targets]
+        return " UNION ".join(parts) if parts else None
+
+    def class_test(self, v: str, cls: str, k: int) -> str:
+        closure = self.hierarchy.closure(cls)
+        named = " ".join(sorted(c for c in closure if c.startswith("<")))
+        test = f"EXISTS {{ {v} a ?_c{k} . VALUES ?_c{k} {{ {named} }} }}"
+        individuals = self.hierarchy.typed(closure)
+        return f"({test} || {v} IN ({', '.join(individuals)}))" if individuals else test
+
+    def datatype_test(self, v: str, dt: str, k: int) -> str:
+        from stepnc_graph.validate.rdfdata import FOLDED
+
+        plain = f"(isLiteral({v}) && sameTerm(datatype({v}), {dt}))"
+        if not self.literals:
+            return plain
+        g = f"<{LITERALS_GRAPH}>"
+        ill = f"NOT EXISTS {{ GRAPH {g} {{ {dt} {ILL_TYPED} {v} }} }}"
+        if dt[1:-1] in FOLDED:  # stored by Oxigraph as xsd:integer: the load noted the original type
+            return f"(EXISTS {{ GRAPH {g} {{ {dt} {LITERAL} {v} }} }} && {ill})"
+        other = (f"(NOT EXISTS {{ GRAPH {g} {{ ?_d{k} {LITERAL} {v} }} }} || "
+                 f"EXISTS {{ GRAPH {g} {{ {dt} {LITERAL} {v} }} }})")
+        return f"({plain} && {ill} && {other})"
+
+    def expand(self, check: Check) -> str | None:
+        """The check's query for this graph; None when it has no focus node here."""
+        counter = itertools.count()
+        missing = False
+
+        def focus(m: re.Match[str]) -> str:
+            nonlocal missing
+            text = self.focus(check, m.group(1), next(counter))
+            if text is None:
+                missing = True
+                return ""
+            return text
+
+        query = FOCUS_MARK.sub(focus, check.query)
+        if missing:
+            return None
+        query = CLASS_MARK.sub(lambda m: self.class_test(m.group(1), m.group(2), next(counter)), query)
+        return DATATYPE_MARK.sub(lambda m: self.datatype_test(m.group(1), m.group(2), next(counter)), query)
 
 
 #: Checks run on this many threads: Oxigraph evaluates a query without the GIL, so two cores
@@ -498,47 +472,91 @@ def refuse_service(checks: list[Check], allow: bool = False) -> None:
         return
     for check in checks:
         try:
-            refuse_outbound(check.query.replace(FOCUS, "{}"))
+            refuse_outbound(_parseable(check.query))
         except OutboundRefused as exc:
-            raise ShapesError(f"shape {check.shape}, its {check.constraint} constraint: {exc}") from None
+            raise IllFormedShapes(f"shape {check.shape}, its {check.constraint} constraint: {exc}") from None
+
+
+def _parseable(query: str) -> str:
+    """A check's query with its placeholders as SPARQL a parser reads: the focus pattern an empty
+    group, class and datatype tests ``true``."""
+    return DATATYPE_MARK.sub("true", CLASS_MARK.sub("true", FOCUS_MARK.sub("{}", query)))
 
 
 def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] = frozenset(),
+        hierarchy: tuple[dict[str, set[str]], dict[str, set[str]]] | None = None,
         allow_service: bool = False) -> tuple[list[Row], int]:
     """Run the checks whose targets occur in ``graph``; the rows, and how many checks ran.
 
     Checks whose :attr:`Check.implied` is in ``skip`` are not run (see :mod:`.implied`).
+    ``hierarchy``: the support files' subclasses and typed individuals (class -> nodes).
     They run on :data:`CHECK_THREADS` threads; the rows come in the order of ``checks``
     whatever the threads' timing. A check with a ``SERVICE`` clause is refused (ShapesError)
     unless ``allow_service``."""
     refuse_service(checks, allow_service)
     g = ox.NamedNode(graph)
     present = {str(s[0]) for s in store.query("SELECT DISTINCT ?t WHERE { ?s a ?t }", default_graph=g)}  # type: ignore[union-attr]
+    edges = [(str(r[0]), str(r[1])) for r in store.query(  # type: ignore[union-attr]
+        f"SELECT ?s ?o WHERE {{ ?s {SUBCLASS_OF} ?o FILTER(isIRI(?s) && isIRI(?o)) }}", default_graph=g)]
+    subclasses, individuals = hierarchy if hierarchy is not None else ({}, {})
+    ctx = RunContext(Hierarchy(subclasses, individuals, edges), present,
+                     store.contains_named_graph(ox.NamedNode(LITERALS_GRAPH)))
     # a node with two types that a class target can reach: not the file node (p21:ExchangeStructure, prov:Entity)
     multi_typed = bool(store.query(f"ASK {{ ?s a ?t1 , ?t2 FILTER(!sameTerm(?t1, ?t2)) "
                                    f"FILTER NOT EXISTS {{ ?s a <{P21_NS}ExchangeStructure> }} }}", default_graph=g))
     todo: list[tuple[Check, str]] = []
     for check in checks:
-        focus = focus_pattern(check, present)
-        if focus is None or check.implied in skip or (
-                check.excludes is not None and not multi_typed and not check.excludes & present):
+        if check.implied in skip or (check.excludes is not None and not multi_typed and not ctx.hierarchy.extended
+                                     and not check.excludes & present):
             continue
-        todo.append((check, check.query.replace(FOCUS, focus)))
+        query = ctx.expand(check)
+        if query is not None:
+            todo.append((check, query))
 
-    def evaluate(item: tuple[Check, str]) -> list[tuple[Any, Any]]:
-        results = store.query(item[1], default_graph=g)
-        has_value = any(v.value == "value" for v in results.variables)  # type: ignore[union-attr]
-        return [(s["this"], s["value"] if has_value else None)
-                for s in results if s["this"] is not None]  # type: ignore[union-attr]
+    def evaluate(item: tuple[Check, str]) -> list[tuple[Any, Any, Any, tuple[tuple[str, Any], ...]]]:
+        check, query = item
+        try:
+            results = store.query(query, default_graph=g)
+        except (SyntaxError, ValueError, OSError) as exc:
+            raise IllFormedShapes(f"{check.shape}: its {check.constraint} check does not run: {exc}") from None
+        names = [v.value for v in results.variables]  # type: ignore[union-attr]
+        # other named variables tell results apart (sh:lessThan's ?other, sh:uniqueLang's ?lang) and
+        # fill a SPARQL constraint's message
+        keep = [n for n in names if not n.startswith("_") and n not in ("this", "value", "path")]
+        out = []
+        for s in results:  # type: ignore[union-attr]
+            if s["this"] is None:
+                continue
+            value = s["value"] if "value" in names else None
+            if value is None and check.sparql_node is not None and check.path is None:
+                value = s["this"]  # a SPARQL-based result of a node shape: the focus node is the value (5.3.2)
+            path = s["path"] if "path" in names else None
+            out.append((s["this"], value, path if isinstance(path, ox.NamedNode) else None,
+                        tuple((n, s[n]) for n in keep if s[n] is not None)))
+        return out
 
-    with ThreadPoolExecutor(CHECK_THREADS) as pool:
-        found = list(pool.map(evaluate, todo))
+    if len(todo) < 2 or CHECK_THREADS == 1:  # a thread pool costs more than one small check
+        found = [evaluate(item) for item in todo]
+    else:
+        with ThreadPoolExecutor(CHECK_THREADS) as pool:
+            found = list(pool.map(evaluate, todo))
     rows: list[Row] = []
-    seen: set[tuple[str, str, str, str]] = set()
+    seen: set[tuple[str, ...]] = set()
     for (check, _), solutions in zip(todo, found, strict=True):
-        for focus_node, value in solutions:
-            key = (check.shape, check.constraint, str(focus_node), str(value))
+        times = _multiplicity(store, g, ctx, check) if solutions and check.multiplicity else {}
+        for focus_node, value, path, bindings in solutions:
+            key = (check.shape, check.constraint, str(check.args), str(check.parent), str(focus_node), str(value),
+                   str(path), str(bindings))
             if key not in seen:  # a nested shape's ways to fail can match the same value twice
                 seen.add(key)
-                rows.append(Row(check, focus_node, value))
+                rows += [Row(check, focus_node, value, path, bindings)] * times.get(str(focus_node), 1)
     return rows, len(todo)
+
+
+def _multiplicity(store: ox.Store, g: ox.NamedNode, ctx: RunContext, check: Check) -> dict[str, int]:
+    """How many times each focus node of a nested property shape is reached from the root's."""
+    pattern = ctx.expand(dataclasses.replace(check, query=check.multiplicity or ""))
+    if not pattern:
+        return {}
+    rows = store.query(f"SELECT ?this (COUNT(*) AS ?n) WHERE {{ {pattern} }} GROUP BY ?this", default_graph=g)
+    return {str(r["this"]): int(r["n"].value) for r in rows}  # type: ignore[union-attr]

@@ -57,11 +57,25 @@ KIND_DATATYPE = {"real": T.T_DOUBLE, "string": f"<{T.XSD}string>", "integer": T.
 
 def mark(checks: Sequence[Check], graph: ShapesGraph, plans: Plans) -> list[Check]:
     """``checks`` with :attr:`Check.implied` set where the mapping guarantees them."""
-    slots: dict[str, list[Slot]] = defaultdict(list)
-    for plan in plans.entities.values():
-        for slot in (*plan.slots, *plan.own_slots):
-            slots[f"<{slot.prop}>"].append(slot)
-    return [dataclasses.replace(c, implied=_implied(c, graph, slots.get(c.path_term or "", []))) for c in checks]
+    slots = _slots(plans)
+    return [dataclasses.replace(c, implied=_implied(c, graph, slots.get(c.path_term or "", [])))
+            if c.path_term in slots else c for c in checks]
+
+
+_SLOTS: dict[int, dict[str, list[Slot]]] = {}
+
+
+def _slots(plans: Plans) -> dict[str, list[Slot]]:
+    """The mapping's slots by attribute property (``<iri>``), built once per set of plans: shapes
+    compiled in a process (an organisation's own, the W3C suite's) reuse it."""
+    found = _SLOTS.get(id(plans))
+    if found is None:
+        index: dict[str, list[Slot]] = defaultdict(list)
+        for plan in plans.entities.values():
+            for slot in (*plan.slots, *plan.own_slots):
+                index[f"<{slot.prop}>"].append(slot)
+        found = _SLOTS[id(plans)] = dict(index)
+    return found
 
 
 def _implied(check: Check, graph: ShapesGraph, slots: list[Slot]) -> str | None:

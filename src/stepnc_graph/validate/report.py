@@ -36,14 +36,34 @@ class Result:
     shape: str | None = None
     path_iri: str | None = field(default=None, compare=False)  # the path in SPARQL syntax (<iri> when simple)
     value_term: str | None = field(default=None, compare=False)  # the sh:value term (N-Triples)
+    #: the RDF terms of the report (N-Triples; a blank node by the label of its graph)
+    focus_term: str | None = field(default=None, compare=False)
+    shape_term: str | None = field(default=None, compare=False)
+    path_term: str | None = field(default=None, compare=False)  # the sh:path node of the shapes graph
+    path_turtle: str | None = field(default=None, compare=False)  # that path written as Turtle
+    message_terms: tuple[str, ...] = field(default=(), compare=False)  # every sh:resultMessage literal
 
     def asdict(self) -> dict[str, Any]:
-        return {k: v for k, v in asdict(self).items() if k not in ("path_iri", "value_term")}
+        return {k: v for k, v in asdict(self).items() if k not in _TERMS}
 
     @property
     def sort_key(self) -> tuple[Any, ...]:
         return (self.graph, self.line if self.line is not None else 0, self.p21_id or 0,
-                SEVERITIES.index(self.severity), self.path or "", self.message)
+                rank(self.severity), self.path or "", self.message, self.focus)
+
+    @property
+    def fails(self) -> bool:
+        """Whether the result fails a program: a Violation, or a severity of one's own (SHACL
+        allows any IRI; stepnc-graph does not guess that it is harmless)."""
+        return rank(self.severity) == 0
+
+
+_TERMS = ("path_iri", "value_term", "focus_term", "shape_term", "path_term", "path_turtle", "message_terms")
+
+
+def rank(severity: str) -> int:
+    """0 Violation (and custom severities), 1 Warning, 2 Info."""
+    return SEVERITIES.index(severity) if severity in SEVERITIES else 0
 
 
 @dataclass
@@ -57,22 +77,30 @@ class ValidationReport:
 
     @property
     def conforms(self) -> bool:
-        """No Violation: warnings and infos do not fail a program (see docs/validation.md)."""
-        return not any(r.severity == "Violation" for r in self.results)
+        """SHACL's ``sh:conforms``: no result at all, of any severity (SHACL 3.6.1)."""
+        return not self.results
+
+    @property
+    def passes(self) -> bool:
+        """No Violation (nor a result of a custom severity): warnings and infos inform, they do not
+        fail a program. The exit code follows this (see docs/validation.md)."""
+        return not any(r.fails for r in self.results)
 
     def at_least(self, severity: str) -> "ValidationReport":
         """The results of ``severity`` or more severe."""
-        rank = SEVERITIES.index(severity)
-        return ValidationReport([r for r in self.results if SEVERITIES.index(r.severity) <= rank], self.graphs,
+        level = SEVERITIES.index(severity)
+        return ValidationReport([r for r in self.results if rank(r.severity) <= level], self.graphs,
                                 self.checks_run, self.seconds)
 
     def counts(self) -> dict[str, int]:
-        return {s: sum(r.severity == s for r in self.results) for s in SEVERITIES}
+        out = {s: sum(r.severity == s for r in self.results) for s in SEVERITIES}
+        out["Violation"] += sum(r.severity not in SEVERITIES for r in self.results)
+        return out
 
     # -- renderings -----------------------------------------------------------------------
 
     def to_json(self) -> str:
-        doc = {"conforms": self.conforms, "graphs": self.graphs, "counts": self.counts(),
+        doc = {"conforms": self.conforms, "passes": self.passes, "graphs": self.graphs, "counts": self.counts(),
                "results": [r.asdict() for r in self.results]}
         return json.dumps(doc, indent=2, ensure_ascii=False)
 
@@ -87,16 +115,21 @@ class ValidationReport:
         for graph in self.graphs:
             mine = [r for r in self.results if r.graph == graph]
             c = {s: sum(r.severity == s for r in mine) for s in SEVERITIES}
-            lines.append(f"{graph}: {'conforms' if not c['Violation'] else 'does not conform'} "
+            c["Violation"] += sum(r.severity not in SEVERITIES for r in mine)
+            verdict = "conforms" if not mine else "passes (warnings only)" if not c["Violation"] else "does not conform"
+            lines.append(f"{graph}: {verdict} "
                          f"({c['Violation']} violation(s), {c['Warning']} warning(s), {c['Info']} info)")
             for key, group in _by_instance(mine):
-                line, ident, entity = key
-                head = f"line {line:<5}" if line is not None else "          "
-                lead = f"  {head} {f'#{ident}' if ident is not None else '':<7} {(entity or '').upper()}"
+                line, ident, entity, focus = key
+                if line is None and ident is None:  # not a Part 21 instance: name the node
+                    lead = f"  {_short(focus)}"
+                else:
+                    head = f"line {line:<5}" if line is not None else "          "
+                    lead = f"  {head} {f'#{ident}' if ident is not None else '':<7} {(entity or '').upper()}"
                 for i, r in enumerate(group):
                     where = f"{r.path}: " if r.path else ""
                     cite = ", ".join(x for x in (r.clause, r.rule) if x)
-                    tag = "" if r.severity == "Violation" else f"{r.severity.lower()}: "
+                    tag = "" if r.severity == "Violation" else f"{_short(r.severity).lower()}: "
                     text = _one_line(f"{tag}{where}{r.message}{f'  [{cite}]' if cite else ''}")
                     lines.append(f"{lead}  {text}" if i == 0 else f"{' ' * len(lead)}  {text}")
         return "\n".join(lines) + "\n"
@@ -107,14 +140,20 @@ class ValidationReport:
                "@prefix p21: <https://w3id.org/stepnc-graph/p21#> .", "",
                f"[] a sh:ValidationReport ; sh:conforms {'true' if self.conforms else 'false'}"]
         for r in self.results:
-            parts = [f"sh:focusNode {_term(r.focus)}", f"sh:resultSeverity sh:{r.severity}",
+            severity = f"sh:{r.severity}" if r.severity in SEVERITIES else _term(r.severity)
+            messages = r.message_terms or (_literal(r.message),)
+            parts = [f"sh:focusNode {r.focus_term or _term(r.focus)}", f"sh:resultSeverity {severity}",
                      f"sh:sourceConstraintComponent {_term(r.component)}",
-                     f"sh:resultMessage {_literal(r.message)}"]
-            if r.path_iri and r.path_iri.startswith("<") and ">" not in r.path_iri[:-1]:
+                     f"sh:resultMessage {', '.join(messages)}"]
+            if r.path_turtle:
+                parts.append(f"sh:resultPath {r.path_turtle}")
+            elif r.path_iri and r.path_iri.startswith("<") and ">" not in r.path_iri[:-1]:
                 parts.append(f"sh:resultPath {r.path_iri}")
             if r.value_term is not None:
                 parts.append(f"sh:value {r.value_term}")
-            if r.shape:
+            if r.shape_term:
+                parts.append(f"sh:sourceShape {r.shape_term}")
+            elif r.shape:
                 parts.append(f"sh:sourceShape {_term(r.shape)}")
             if r.p21_id is not None:
                 parts.append(f"p21:id {r.p21_id}")
@@ -143,8 +182,21 @@ def _one_line(text: str) -> str:
     return text.replace("\r", "\\r").replace("\n", "\\n")
 
 
-def _by_instance(results: Iterable[Result]) -> list[tuple[tuple[int | None, int | None, str | None], list[Result]]]:
-    groups: dict[tuple[int | None, int | None, str | None], list[Result]] = {}
+def _short(iri: str) -> str:
+    """An IRI's local name for text output (a blank node label as it is)."""
+    text = iri.strip("<>")
+    for sep in ("#", "/"):
+        if sep in text and not text.endswith(sep):
+            text = text.rsplit(sep, 1)[1]
+    return text
+
+
+Group = tuple[int | None, int | None, str | None, str]
+
+
+def _by_instance(results: Iterable[Result]) -> list[tuple[Group, list[Result]]]:
+    groups: dict[Group, list[Result]] = {}
     for r in sorted(results, key=lambda r: r.sort_key):
-        groups.setdefault((r.line, r.p21_id, r.entity), []).append(r)
+        key = (r.line, r.p21_id, r.entity, r.focus if r.line is None and r.p21_id is None else "")
+        groups.setdefault(key, []).append(r)
     return list(groups.items())

@@ -7,6 +7,7 @@ Read with pyoxigraph's Turtle parser (Rust; no rdflib at run time, which keeps
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from collections.abc import Iterable
 from pathlib import Path
@@ -30,6 +31,14 @@ class ShapesError(Exception):
     """A shapes file that cannot be read or uses SHACL the engine does not run."""
 
 
+class IllFormedShapes(ShapesError):
+    """A shapes graph SHACL says an engine must refuse (an ill-formed shape, a forbidden SPARQL form)."""
+
+
+class UnsupportedShapes(ShapesError):
+    """Well-formed SHACL this engine refuses to run rather than answer wrongly (each case documented)."""
+
+
 class ShapesGraph:
     """Triples of the shapes (and support) files; ``objects(s, p)`` in file order."""
 
@@ -42,24 +51,35 @@ class ShapesGraph:
         #: subject -> position (0-based) of the file that first describes it
         self.origin: dict[str, int] = {}
         self._files = 0
+        #: positions of the files whose triples belong to the data graph (shapes/support.ttl: the class
+        #: hierarchy and the enumeration items' types, defined to be part of every data graph)
+        self.data_files: set[int] = set()
+        #: class -> direct subclasses, and class -> typed nodes, in the shapes graph proper (not data
+        #: files): for implicit class targets and the types of shapes, validators and components
+        self.shape_subclasses: dict[str, set[str]] = defaultdict(set)
+        self.shape_instances: dict[str, set[str]] = defaultdict(set)
 
-    def add_file(self, path: Path, position: int | None = None) -> None:
+    def add_file(self, path: Path, position: int | None = None, data: bool = False) -> None:
         """Add a Turtle file (blank node labels kept apart per file)."""
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, ValueError) as exc:
             raise ShapesError(f"{path}: {exc}") from None
-        self.add_text(text, str(path), position)
+        self.add_text(text, str(path), position, data)
 
-    def add_text(self, text: str, name: str, position: int | None = None) -> None:
-        """Add a Turtle document; ``name`` (its file) is for error messages. ``position`` is the
-        file's place in the full list of shape files (default: the next one): it names the file's
-        blank nodes, so a graph of some of the files names them as the graph of all of them does."""
+    def add_text(self, text: str, name: str, position: int | None = None, data: bool = False) -> None:
+        """Add a Turtle document; ``name`` (its file) is for error messages and is the base of its
+        relative IRIs (as any Turtle reader takes a file's IRI). ``position`` is the file's place in
+        the full list of shape files (default: the next one): it names the file's blank nodes, so a
+        graph of some of the files names them as the graph of all of them does. ``data``: the file's
+        triples belong to the data graph (:attr:`data_files`)."""
         if position is None:
             position = self._files
         self._files = max(self._files, position + 1)
+        if data:
+            self.data_files.add(position)
         try:
-            triples = list(ox.parse(text.encode("utf-8"), format=ox.RdfFormat.TURTLE))
+            triples = list(ox.parse(text.encode("utf-8"), format=ox.RdfFormat.TURTLE, base_iri=base_iri(name)))
         except (SyntaxError, ValueError) as exc:
             raise ShapesError(f"{name}: {exc}") from None
         self.add(triples, f"f{position + 1}", position)
@@ -77,10 +97,11 @@ class ShapesGraph:
                 self.origin.setdefault(s, position)
             self._sp[(s, p)].append(o)
             self._po[(p, o)].append(s)
+            data = position in self.data_files
             if p == SUBCLASS:
-                self.subclasses[o].add(s)
+                (self.subclasses if data else self.shape_subclasses)[o].add(s)
             elif p == RDF_TYPE:
-                self.instances[o].add(s)
+                (self.instances if data else self.shape_instances)[o].add(s)
 
     @staticmethod
     def term(node: object, tag: str, blanks: dict[str, str]) -> str:
@@ -133,8 +154,35 @@ class ShapesGraph:
         return out
 
     def typed_individuals(self, classes: Iterable[str]) -> set[str]:
-        """Individuals these files type with one of ``classes`` (enumeration items)."""
-        return {i for c in classes for i in self.instances.get(c, ())}
+        """Individuals the data files type with one of ``classes`` (enumeration items); IRIs only."""
+        return {i for c in classes for i in self.instances.get(c, ()) if i.startswith("<")}
+
+    def is_instance(self, node: str, cls: str) -> bool:
+        """Whether the shapes graph makes ``node`` a SHACL instance of ``cls`` (rdf:type, then
+        rdfs:subClassOf in the shapes graph)."""
+        return any(node in self.shape_instances.get(c, ()) for c in self.shape_closure(cls))
+
+    def shape_closure(self, cls: str) -> set[str]:
+        """``cls`` and its subclasses by the shapes graph's own rdfs:subClassOf triples."""
+        out = {cls}
+        stack = [cls]
+        while stack:
+            for sub in self.shape_subclasses.get(stack.pop(), ()):
+                if sub not in out:
+                    out.add(sub)
+                    stack.append(sub)
+        return out
+
+    def instances_of(self, cls: str) -> set[str]:
+        """The SHACL instances of ``cls`` in the shapes graph."""
+        return {n for c in self.shape_closure(cls) for n in self.shape_instances.get(c, ())}
+
+
+def base_iri(name: str) -> str:
+    """The IRI of a shapes file named ``name`` (a path): the base of its relative IRIs."""
+    if "://" in name or name.startswith("urn:"):
+        return name
+    return Path(name).resolve().as_uri()
 
 
 def literal_text(term: str) -> str:
@@ -142,4 +190,16 @@ def literal_text(term: str) -> str:
     if not term.startswith('"'):
         return term
     end = term.rindex('"')
-    return term[1:end].replace('\\"', '"').replace("\\\\", "\\")
+    return _ESCAPE.sub(_unescape, term[1:end])
+
+
+_ESCAPE = re.compile(r"\\(?:u([0-9A-Fa-f]{4})|U([0-9A-Fa-f]{8})|(.))")
+_CHARS = {"t": "\t", "b": "\b", "n": "\n", "r": "\r", "f": "\f", '"': '"', "'": "'", "\\": "\\"}
+
+
+def _unescape(m: re.Match[str]) -> str:
+    """One N-Triples escape sequence as its character."""
+    code = m.group(1) or m.group(2)
+    if code:
+        return chr(int(code, 16))
+    return _CHARS.get(m.group(3), m.group(0))
