@@ -716,7 +716,8 @@ def test_every_invalid_iri_is_a_clear_error_never_a_traceback_or_a_drop(kind: st
 
 
 @pytest.mark.parametrize("case", ["relative-no-base", "undefined-key", "bad-host", "bad-scheme", "language-tag",
-                                  "keyword-like-key", "relative-type-no-base", "dot-segments"])
+                                  "keyword-like-key", "relative-type-no-base", "dot-segments", "base", "vocab",
+                                  "floating-value", "floating-list"])
 def test_what_json_ld_would_drop_silently_is_refused(case: str, tmp_path: Path) -> None:
     doc = small_doc()
     i3 = node(doc, "i3")
@@ -742,12 +743,23 @@ def test_what_json_ld_would_drop_silently_is_refused(case: str, tmp_path: Path) 
         doc["@graph"].append({"@context": {"@base": None}, "@id": "https://plm.example.com/x",
                               "@type": "Thing", "https://plm.example.com/n": "x"})
         expected = "Thing"
-    else:  # resolution would remove the invalid part: JSON-LD drops the node, a lenient reader keeps ".../c"
+    elif case == "dot-segments":  # resolution would remove the invalid part: JSON-LD drops the node
         i3["@id"] = "a b/../c"
         expected = "a b/../c"
+    elif case in ("base", "vocab"):  # resolving against an invalid base gives valid-looking IRIs
+        doc["@graph"].append({"@context": {f"@{case}": "https://plm.example.com/a b/"}, "@id": "x",
+                              "https://plm.example.com/n": "y"})
+        expected = "https://plm.example.com/a b/"
+    elif case == "floating-value":  # a value in no node: JSON-LD drops it
+        doc["@graph"].append({"@value": "a note on its own"})
+        expected = "a note on its own"
+    else:
+        doc["@graph"].append({"@list": ["a", "list", "on its own"]})
+        expected = ["a", "list", "on its own"]
     error = refused(doc, tmp_path)
     assert error.pointer is not None
-    assert expected in (at_pointer(doc, error.pointer), last_token(error.pointer)), error
+    found = at_pointer(doc, error.pointer)
+    assert expected in (found, last_token(error.pointer), *(found.values() if isinstance(found, dict) else [])), error
 
 
 @pytest.mark.parametrize("label", ["_:a b", "_:_:", "_:\u00e9t\u00e9", "_:.x", "_:x.", "_:"])
@@ -967,8 +979,8 @@ def hostile_documents(draw: st.DrawFn) -> tuple[str, bool]:
     ctx = doc["@context"]
     numbers: list[str] = []
     duplicate = False
-    for op in draw(st.lists(st.sampled_from(["context", "iri", "key", "deep", "number", "list", "twice"]),
-                            min_size=1, max_size=4)):
+    for op in draw(st.lists(st.sampled_from(["context", "iri", "key", "deep", "number", "list", "twice", "base",
+                                             "floating"]), min_size=1, max_size=4)):
         target = draw(st.sampled_from([n for n in doc["@graph"] if isinstance(n, dict)]))
         if op == "context":
             url = draw(st.sampled_from(["LISTENER", "FIFO", "file:///etc/passwd", CONTEXT_IRI, "https://example.com/c"]))
@@ -1014,6 +1026,10 @@ def hostile_documents(draw: st.DrawFn) -> tuple[str, bool]:
         elif op == "number":
             numbers.append(draw(st.sampled_from(NUMBERS)))
             target[f"https://plm.example.com/n{len(numbers)}"] = f"NUMBER{len(numbers)}"
+        elif op == "base":
+            target["@context"] = {draw(st.sampled_from(["@base", "@vocab", "@language"])): draw(hostile_texts())}
+        elif op == "floating":
+            doc["@graph"].append(draw(st.sampled_from([{"@value": "x"}, {"@list": [1]}, {"@set": [{"@id": "i3"}]}])))
         elif op == "list":
             target["https://plm.example.com/samples"] = {"@list": draw(st.lists(
                 st.one_of(st.integers(), st.floats(allow_nan=False), st.text(max_size=3), st.booleans()),

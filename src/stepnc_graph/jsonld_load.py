@@ -402,6 +402,33 @@ def _check_key(key: str, path: _Path, name: str) -> None:
                           "defines)", name, pointer=pointer((path, key)))
 
 
+def _check_bases(context: dict[str, Any], path: _Path, name: str) -> None:
+    """A context's ``@base`` and ``@vocab`` must be IRI references: resolving against an invalid
+    one could give valid-looking IRIs where JSON-LD has none."""
+    for key in ("@base", "@vocab"):
+        value = context.get(key)
+        if isinstance(value, str) and (_NOT_IN_IRI.search(value) or _BAD_PERCENT.search(value) or (
+                _SCHEME.match(value) and _iri_problem(value))):
+            try:
+                ox.NamedNode(value)
+                error = "not one"
+            except ValueError as e:
+                error = str(e)
+            raise JsonLdError(f"{_quote(value)} is not an IRI reference: {_iri_reason(value, error)}", name,
+                              pointer=pointer((path, key)))
+
+
+def _floating(value: dict[str, Any], path: _Path) -> bool:
+    """Whether ``value`` is a value or list object with no node to belong to: the document itself,
+    or a member of a top-level array or of a ``@graph`` array."""
+    if not ("@value" in value or "@list" in value):
+        return False
+    if path is None:
+        return True
+    parent, token = path
+    return isinstance(token, int) and (parent is None or parent[1] == "@graph")
+
+
 def local_contexts(doc: Any, name: str) -> Any:
     """``doc``, checked all through and with every context named by an IRI resolved without the network.
 
@@ -444,6 +471,11 @@ def local_contexts(doc: Any, name: str) -> Any:
                 contexts.check_scoped(value["@context"], (path, "@context"))
         if "@import" in value:
             contexts.imported(value, path)
+        if in_context:
+            _check_bases(value, path, name)
+        elif _floating(value, path):
+            raise JsonLdError("a value on its own, in no node (JSON-LD drops it, and what it says would be "
+                              "lost): give it a node and a property", name, pointer=pointer(path))
         stack.extend((item, (path, key), depth + 1, in_context or key == "@context")
                      for key, item in value.items() if item is not contexts.shipped)
     if contexts.unshipped is not None:
