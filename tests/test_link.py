@@ -233,3 +233,83 @@ def test_cli_link_exit_codes(tmp_path: Path) -> None:
         assert len(program_link_graphs(store, sg.info(store)[0].graph)) == 2
         assert ox.NamedNode(sg.info(store)[0].graph)  # the program is still listed alone
         assert [i.graph for i in sg.info(store)] == ["https://w3id.org/stepnc-graph/data/shaft_two_setups.stp"]
+
+
+# -- hostile mappings (issue 26) ---------------------------------------------------------------
+
+#: what a message about a mapping must not show: Python's insides
+INTERNALS = re.compile(r"Traceback|Error:|Exception|<class |object at 0x|field limit|Exceeds the limit|recursion")
+
+
+def link_error(tmp_path: Path, name: str, text: str) -> LinkError:
+    """The LinkError linking ``text`` raises: nothing linked, a message about the mapping."""
+    store, graph = loaded()
+    with pytest.raises(LinkError) as caught:
+        sg.link(store, write(tmp_path, name, text), graph)
+    assert not INTERNALS.search(str(caught.value)), str(caught.value)
+    assert program_link_graphs(store, graph) == []
+    return caught.value
+
+
+def test_a_csv_field_too_long_is_a_clear_error_with_line_and_column(tmp_path: Path) -> None:
+    error = link_error(tmp_path, "long.csv", "its_id,identifier\nSHAFT-42,PN 1\nSHAFT-42," + "x" * 200_000 + "\n")
+    assert (error.line, error.column) == (3, 10)
+    assert "identifier" in error.message and "131,072" in error.message
+    assert str(error).startswith(f"{tmp_path / 'long.csv'}:3:10: ")
+    # a quoted field over several lines is placed where it starts
+    error = link_error(tmp_path, "quoted.csv", 'its_id,identifier\nSHAFT-42,"a\n' + "y" * 200_000 + '"\n')
+    assert (error.line, error.column) == (2, 10)
+
+
+def test_a_column_named_twice_is_refused_not_read_as_the_last(tmp_path: Path) -> None:
+    error = link_error(tmp_path, "twice.csv", "its_id,identifier,Identifier \nSHAFT-42,PN 1,PN 2\n")
+    assert (error.line, error.column) == (1, 19)
+    assert "identifier" in error.message and "columns 2 and 3" in error.message
+
+
+def test_a_json_key_given_twice_is_refused_not_read_as_the_last(tmp_path: Path) -> None:
+    store, graph = loaded()
+    text = '{"links": [{"its_id": "SHAFT-42", "identifier": "PN 1"},\n' \
+           '           {"its_id": "SHAFT-42", "identifier": "PN 1", "identifier": "PN 2"}]}'
+    with pytest.raises(LinkError) as caught:
+        sg.link(store, write(tmp_path, "twice.json", text), graph)
+    [problem] = caught.value.problems
+    assert problem.line == 2 and problem.pointer == "/links/1"
+    assert "identifier" in problem.message and "twice" in problem.message
+    assert "/links/1" in str(caught.value)
+    error = link_error(tmp_path, "top.json", '{"links": [], "links": [{"its_id": "SHAFT-42", "identifier": "x"}]}')
+    assert error.pointer == "" and "links" in error.message
+
+
+def test_a_deeply_nested_json_mapping_is_a_clear_error(tmp_path: Path) -> None:
+    error = link_error(tmp_path, "deep.json", "[" * 100_000 + "]" * 100_000)
+    assert "nested" in error.message
+
+
+def test_a_huge_json_number_is_a_row_problem_not_a_crash(tmp_path: Path) -> None:
+    store, graph = loaded()
+    text = '[{"p21_id": ' + "9" * 5000 + ', "identifier": "x"}, {"p21_id": 30, "identifier": "y"}]'
+    result = sg.link(store, write(tmp_path, "huge.json", text), graph, allow_unknown=True)
+    assert result.links == 1
+    [problem] = result.problems
+    assert problem.line == 1 and "instance number" in problem.message and len(problem.message) < 300
+    assert not INTERNALS.search(problem.message)
+
+
+@pytest.mark.parametrize("name,text,where", [
+    ("long.csv", "its_id,identifier\nSHAFT-42," + "x" * 200_000 + "\n", "long.csv:2:10: "),
+    ("twice.csv", "its_id,identifier,identifier\nSHAFT-42,a,b\n", "twice.csv:1:"),
+    ("deep.json", "[" * 100_000 + "]" * 100_000, "deep.json"),
+])
+def test_cli_link_hostile_mappings_exit_2_with_where(name: str, text: str, where: str, tmp_path: Path) -> None:
+    store_dir = str(tmp_path / "store")
+    runner = CliRunner()
+    assert runner.invoke(main, ["load", "--store", store_dir, str(EXAMPLE)]).exit_code == 0
+    mapping = write(tmp_path, name, text)
+    done = runner.invoke(main, ["link", "--store", store_dir, str(mapping)])
+    assert done.exit_code == 2, done.output
+    assert where in done.output and "Traceback" not in done.output and not INTERNALS.search(done.output)
+    done = runner.invoke(main, ["link", "--store", store_dir, "--format", "json", str(mapping)])
+    assert done.exit_code == 2
+    [error] = json.loads(done.output)["errors"]
+    assert error["type"] == "LinkError" and "line" in error

@@ -18,11 +18,10 @@ large programs, and the shape is known (the loader's graphs). Its correctness
 is checked the other way round: the tests expand every export with a JSON-LD
 processor and compare with the store's quads.
 
-**Import.** :func:`read_program` parses a JSON-LD document with PyLD (a complete
-JSON-LD 1.1 processor) and gives the triples of the one program graph it holds.
-Contexts are never fetched: the document loader handed to PyLD serves only the
-shipped context, by :data:`~stepnc_graph.naming.CONTEXT_IRI`, from the
-installed file, and refuses every other IRI.
+**Import** is :mod:`stepnc_graph.jsonld_load`: Oxigraph's JSON-LD 1.1 processor, which
+cannot load a document, reads it; contexts are never fetched (the shipped one, named by
+:data:`~stepnc_graph.naming.CONTEXT_IRI`, is served from the installed file), and
+nothing JSON-LD would silently drop is loaded without an error.
 """
 
 from __future__ import annotations
