@@ -390,6 +390,24 @@ def test_the_fuzz_check_finds_an_outbound_connection(monkeypatch: pytest.MonkeyP
     assert listener.connections == 2
 
 
+def test_a_repaired_instance_or_header_with_a_real_beyond_a_double_exports_strictly(tmp_path: Path) -> None:
+    """The repaired text is written from the parsed values, where such a real is infinity: it is
+    written as a real beyond a double again (found by the fuzz run: the export did not parse; a
+    repaired HEADER with one crashed the load)."""
+    path = tmp_path / "inf.stp"
+    path.write_text(HEADER.replace("'2;1'", "T,-1.E999") + "#1=NOT_IN_SCHEMA(1.E999,CW);\n"
+                    "#2=PROPERTY_PARAMETER('a');\nENDSEC;END-ISO-10303-21;\n")
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path], lenient=True)
+    assert codes(r).count("P21-BARE-ENUM") == 2 and "P21-UNKNOWN-ENTITY" in codes(r)
+    [(fixed,)] = rows(store, r.graph, "?t", "?s p21:repairedText ?t")
+    assert fixed == "#1=NOT_IN_SCHEMA(1.E999,.CW.);"
+    again = tmp_path / "again.stp"
+    again.write_bytes(sg.export(store, "p21", r.graph))
+    [r2] = sg.load(sg.open_store(memory=True), [again])  # strict
+    assert r2.instances == 2 and "FILE_DESCRIPTION((''),.T.,-1.E999);" in again.read_text()
+
+
 @pytest.mark.parametrize("number", ["1.E999", "-1.E999", "1" * 400])
 def test_a_real_no_double_can_hold_is_kept_raw(number: str, tmp_path: Path) -> None:
     store = sg.open_store(memory=True)
@@ -430,7 +448,7 @@ def test_text_naming_no_instance_is_kept_in_the_graph_and_exported(tmp_path: Pat
     store = sg.open_store(memory=True)
     [r] = sg.load(store, [program(tmp_path, data)], lenient=True)
     assert [(d.code, d.p21_id, d.line, d.column) for d in r.diagnostics] == [("P21-SYNTAX", None, 2, 28)]
-    assert instance_ids(store, r.graph) == {1, 2}
+    assert instance_ids(store, r.graph) == {1, 2} and (r.instances, r.unreadable_texts) == (2, 1)
     [(text, line, why)] = rows(store, r.graph, "?t ?l ?e", "?g p21:unreadableText [ p21:rawText ?t ; p21:line ?l ; "
                                                            "p21:syntaxError ?e ]")
     assert (text, line) == ("#=PROPERTY_PARAMETER('lost id');", "2") and "'#'" in why

@@ -85,6 +85,7 @@ class LoadResult:
     instances: int = 0
     raw: int = 0  # kept raw: do not fit the schema, or (unreadable) do not parse
     unreadable: int = 0
+    unreadable_texts: int = 0  # text that names no instance, kept (p21:unreadableText)
     triples: int = 0
     defined: int = 0
     derived_triples: int = 0
@@ -102,7 +103,7 @@ class LoadResult:
     def asdict(self) -> dict[str, Any]:
         return {
             "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
-            "unreadable_instances": self.unreadable,
+            "unreadable_instances": self.unreadable, "unreadable_texts": self.unreadable_texts,
             "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
             "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
         }
@@ -213,6 +214,7 @@ class _Load:
         result.mandatory_values_set = self.mapper.mandatory_values_set
         result.lines = self.mapper.positions
         result.unreadable = len(self.mapper.unreadable)
+        result.unreadable_texts = len(self.reader.unreadable_texts)
         result.defined = self.reader.defined
         meta = self.metadata()
         result.triples += len(meta)
