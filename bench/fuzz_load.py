@@ -93,12 +93,15 @@ def one(job: tuple[int, int, float, list[str] | None]) -> tuple[int, str, str, s
     rng = random.Random(index)
     jsonld = bool(_JSONLD) and rng.random() < share
     listener = _LISTENER[0]
-    if jsonld:
-        chosen = [k for k in kinds or JSONLD_KINDS if k in JSONLD_KINDS] or JSONLD_KINDS
-        kind, data = mutate_jsonld(rng, rng.choice(_JSONLD), listener.url, chosen)  # type: ignore[attr-defined]
-    else:
-        chosen = [k for k in kinds or KINDS if k in KINDS] or KINDS
-        kind, data = mutate(rng, rng.choice(_DATA), _DATA, chosen)
+    try:
+        if jsonld:
+            chosen = [k for k in kinds or JSONLD_KINDS if k in JSONLD_KINDS] or JSONLD_KINDS
+            kind, data = mutate_jsonld(rng, rng.choice(_JSONLD), listener.url, chosen)  # type: ignore[attr-defined]
+        else:
+            chosen = [k for k in kinds or KINDS if k in KINDS] or KINDS
+            kind, data = mutate(rng, rng.choice(_DATA), _DATA, chosen)
+    except Exception as e:  # noqa: BLE001 -- the harness's own bug: counted, not the end of the run
+        return index, "jsonld-mutation" if jsonld else "mutation", "failed", f"harness: {describe_exception(e)}", b""
     # a hang burns CPU: the limit is CPU time, so a busy machine cannot fake one; a generous
     # wall-clock limit catches a blocked worker
     signal.signal(signal.SIGPROF, _alarm)

@@ -408,6 +408,27 @@ def test_a_repaired_instance_or_header_with_a_real_beyond_a_double_exports_stric
     assert r2.instances == 2 and "FILE_DESCRIPTION((''),.T.,-1.E999);" in again.read_text()
 
 
+def test_jsonld_damages_of_every_kind_are_made() -> None:
+    """The JSON-LD damages never fail themselves (a 1,000-deep context once hit json.dumps's
+    recursion limit and ended a fuzz run); every kind is made, and the URL lands in a context."""
+    import random
+    from collections import Counter
+
+    from stepnc_graph.fuzz import JSONLD_KINDS, mutate_jsonld
+
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [ROOT / "tests" / "fixtures" / "p21" / "pass_edition3.stp"])
+    doc = sg.export(store, "jsonld", r.graph)
+    made: Counter[str] = Counter()
+    for index in range(240):
+        kind, data = mutate_jsonld(random.Random(index), doc, "http://127.0.0.1:9/c.jsonld")
+        made[kind] += 1
+        assert isinstance(data, bytes) and data
+        if kind == "jsonld-context":
+            assert b"http://127.0.0.1:9/c.jsonld" in data
+    assert set(made) == set(JSONLD_KINDS)
+
+
 @pytest.mark.parametrize("number", ["1.E999", "-1.E999", "1" * 400])
 def test_a_real_no_double_can_hold_is_kept_raw(number: str, tmp_path: Path) -> None:
     store = sg.open_store(memory=True)

@@ -347,7 +347,7 @@ def mutate_jsonld(rng: random.Random, doc: bytes, url: str, kinds: list[str] | N
     tree = json.loads(doc)
     raw: dict[str, str] = {}  # placeholder string -> JSON text put there after dumping
     if kind == "jsonld-context":
-        _contexts(rng, tree, url)
+        _contexts(rng, tree, url, raw)
     elif kind == "jsonld-number":
         _replace_value(rng, tree, _placeholder(raw, rng.choice(
             ["9" * 5000, "-" + "9" * 20_000, "1e999999", "-1e-999999", "1." + "0" * 5000 + "1", "NaN", "Infinity",
@@ -407,18 +407,16 @@ def _replace_key(rng: random.Random, tree: Any, name: str, value: Any) -> None:
         container[key] = value
 
 
-def _contexts(rng: random.Random, tree: Any, url: str) -> None:
+def _contexts(rng: random.Random, tree: Any, url: str, raw: dict[str, str]) -> None:
     """Put ``url`` where a JSON-LD processor would fetch it: the top context in nested arrays,
     an ``@import``, a scoped context (on a node or a term), a context of a nested node."""
     how = rng.choice(["nested-array", "import", "scoped-term", "node", "deep-array", "base-vocab"])
     top = tree.get("@context", {}) if isinstance(tree, dict) else {}
     if how == "nested-array":
         tree["@context"] = [[url], top] if rng.random() < 0.5 else [top, [[url, {}]]]
-    elif how == "deep-array":
-        nested: Any = url
-        for _ in range(rng.choice([10, 100, 1000])):
-            nested = [nested]
-        tree["@context"] = [top, nested]
+    elif how == "deep-array":  # as text: json.dumps recurses
+        depth = rng.choice([10, 100, 1000, 100_000])
+        tree["@context"] = [top, _placeholder(raw, "[" * depth + json.dumps(url) + "]" * depth)]
     elif how == "import" and isinstance(top, dict):
         top["@import"] = url
     elif how == "scoped-term" and isinstance(top, dict):
