@@ -105,6 +105,17 @@ def test_instance_after_endsec_is_read_into_the_section(tmp_path: Path) -> None:
     assert r.instances == 2
 
 
+@pytest.mark.parametrize("after", ["END-ISO-10303-21;", "DATA;#3=PROPERTY_PARAMETER('c');ENDSEC;END-ISO-10303-21;"])
+def test_a_section_without_endsec_is_closed_by_what_follows(after: str, tmp_path: Path) -> None:
+    path = tmp_path / "noendsec.stp"
+    path.write_text(HEADER + "#1=PROPERTY_PARAMETER('a');#2=PROPERTY_PARAMETER('b');" + after)
+    with pytest.raises(Part21SyntaxError, match="ENDSEC"):
+        sg.load(sg.open_store(memory=True), [path])
+    [r] = sg.load(sg.open_store(memory=True), [path], lenient=True)
+    assert [(d.code, d.severity, d.line, d.column) for d in r.diagnostics] == [("P21-ENDSEC-MISSING", "warning", 2, 55)]
+    assert r.instances == 2 + after.count("#3=")
+
+
 # -- encoding (P2.4) ------------------------------------------------------------------------------
 
 
@@ -320,6 +331,104 @@ def test_damaged_programs_keep_every_promise(chunk: int, time_bound: None) -> No
         assert outcome.status in ("ok", "rejected"), (index, kind, outcome.detail)
 
 
+@pytest.mark.parametrize("kind", ["one-line", "multi-instance", "huge-number"])
+def test_relaid_programs_and_huge_numbers_keep_every_promise(kind: str, time_bound: None) -> None:
+    """The damages of issue 26: programs on one line or several instances a line, then an instance
+    broken; integers, reals, #ids and references made huge (a sample of the fuzz run's)."""
+    import random
+
+    from stepnc_graph.fuzz import check, mutate
+
+    programs = [EXAMPLE.read_bytes(), *(p.read_bytes() for p in sorted((ROOT / "tests" / "fixtures" / "p21").glob(
+        "*.stp")))]
+    for index in range(8):
+        rng = random.Random(index)
+        _, data = mutate(rng, rng.choice(programs), programs, [kind])
+        outcome = check(data)
+        assert outcome.status in ("ok", "rejected"), (index, kind, outcome.detail)
+
+
+def test_the_fuzz_check_finds_text_neither_loaded_nor_kept() -> None:
+    """The check measures what is kept by itself: a reader that dropped a span is caught."""
+    from types import SimpleNamespace
+
+    from stepnc_graph.fuzz import _unkept_text
+
+    text = HEADER + "#1=A(1);\n/* c */ #2=B(2); ENDSEC;END-ISO-10303-21;\n"
+    reader = read_text(text, "t.stp", lenient=True)
+    instances = list(reader.instances())
+    assert _unkept_text(reader, instances) == ""
+    dropped = SimpleNamespace(text=text, body_start=reader.body_start, duplicate_texts=[], unreadable_texts=[])
+    assert "#2=B(2);" in _unkept_text(dropped, instances[:1])
+
+
+def test_the_fuzz_check_finds_an_outbound_connection(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A load that connects anywhere fails the JSON-LD check: to the loopback listener (which
+    counts), or anywhere else (the audit hook sees the socket)."""
+    import socket
+    import urllib.request
+
+    from stepnc_graph import fuzz
+
+    listener = fuzz.LoopbackListener()
+    fuzz.watch_network()
+
+    def fetching(store: object, paths: list[Path], **_: object) -> None:
+        urllib.request.urlopen(listener.url, timeout=5).close()  # noqa: S310 -- the test's own listener
+
+    def connecting(store: object, paths: list[Path], **_: object) -> None:
+        with socket.create_connection(("127.0.0.1", listener.port), timeout=5):
+            pass
+
+    try:
+        for load in (fetching, connecting):
+            monkeypatch.setattr(sg, "load", load)
+            outcome = fuzz.check_jsonld(b"{}", listener)
+            assert outcome.status == "failed" and outcome.detail.startswith("network"), outcome
+    finally:
+        listener.close()
+    assert listener.connections == 2
+
+
+def test_a_repaired_instance_or_header_with_a_real_beyond_a_double_exports_strictly(tmp_path: Path) -> None:
+    """The repaired text is written from the parsed values, where such a real is infinity: it is
+    written as a real beyond a double again (found by the fuzz run: the export did not parse; a
+    repaired HEADER with one crashed the load)."""
+    path = tmp_path / "inf.stp"
+    path.write_text(HEADER.replace("'2;1'", "T,-1.E999") + "#1=NOT_IN_SCHEMA(1.E999,CW);\n"
+                    "#2=PROPERTY_PARAMETER('a');\nENDSEC;END-ISO-10303-21;\n")
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path], lenient=True)
+    assert codes(r).count("P21-BARE-ENUM") == 2 and "P21-UNKNOWN-ENTITY" in codes(r)
+    [(fixed,)] = rows(store, r.graph, "?t", "?s p21:repairedText ?t")
+    assert fixed == "#1=NOT_IN_SCHEMA(1.E999,.CW.);"
+    again = tmp_path / "again.stp"
+    again.write_bytes(sg.export(store, "p21", r.graph))
+    [r2] = sg.load(sg.open_store(memory=True), [again])  # strict
+    assert r2.instances == 2 and "FILE_DESCRIPTION((''),.T.,-1.E999);" in again.read_text()
+
+
+def test_jsonld_damages_of_every_kind_are_made() -> None:
+    """The JSON-LD damages never fail themselves (a 1,000-deep context once hit json.dumps's
+    recursion limit and ended a fuzz run); every kind is made, and the URL lands in a context."""
+    import random
+    from collections import Counter
+
+    from stepnc_graph.fuzz import JSONLD_KINDS, mutate_jsonld
+
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [ROOT / "tests" / "fixtures" / "p21" / "pass_edition3.stp"])
+    doc = sg.export(store, "jsonld", r.graph)
+    made: Counter[str] = Counter()
+    for index in range(240):
+        kind, data = mutate_jsonld(random.Random(index), doc, "http://127.0.0.1:9/c.jsonld")
+        made[kind] += 1
+        assert isinstance(data, bytes) and data
+        if kind == "jsonld-context":
+            assert b"http://127.0.0.1:9/c.jsonld" in data
+    assert set(made) == set(JSONLD_KINDS)
+
+
 @pytest.mark.parametrize("number", ["1.E999", "-1.E999", "1" * 400])
 def test_a_real_no_double_can_hold_is_kept_raw(number: str, tmp_path: Path) -> None:
     store = sg.open_store(memory=True)
@@ -327,3 +436,84 @@ def test_a_real_no_double_can_hold_is_kept_raw(number: str, tmp_path: Path) -> N
     [d] = r.diagnostics
     assert (d.code, d.p21_id) == ("P21-VALUE-TYPE", 1) and "out of the range of a double" in d.message
     assert f"#1=CONST_SPINDLE_SPEED({number});" in sg.export(store, "p21", r.graph).decode()
+
+
+# -- recovery at instance boundaries: one-line files, several instances a line (issue 26) ----------
+
+
+def _one_line(text: str) -> str:
+    """``text`` with its line ends replaced by spaces: a program written on one line."""
+    return re.sub(r"\r?\n", " ", text)
+
+
+def test_a_one_line_program_loses_nothing_after_a_syntax_error(tmp_path: Path) -> None:
+    text = _one_line(EXAMPLE.read_text()).replace("#20=SETUP('SETUP 1'", "#20=SETUP('SETUP \\Q1'")
+    path = tmp_path / "one.stp"
+    path.write_text(text)
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path], lenient=True)
+    assert (r.instances, r.unreadable) == (89, 1)
+    assert [(d.code, d.p21_id) for d in r.diagnostics] == [("P21-UNRESOLVED-REF", 3), ("P21-SYNTAX", 20)]
+    [(node, raw)] = rows(store, r.graph, "?s ?t", "?s a p21:UnreadableInstance ; p21:rawText ?t")
+    assert node.endswith("/i20") and raw == "#20=SETUP('SETUP \\Q1',#200,#22,(#21));"
+    assert len(instance_ids(store, r.graph)) == len(re.findall(r"#\d+=", EXAMPLE.read_text())) == 89
+    assert_round_trip(store, r.graph, tmp_path, exclude=unreadable_ids(r))
+
+
+def instance_ids(store: sg.api.GraphStore, graph: str) -> set[int]:
+    return {int(i) for (i,) in rows(store, graph, "?i", "?s p21:id ?i")}
+
+
+def test_text_naming_no_instance_is_kept_in_the_graph_and_exported(tmp_path: Path) -> None:
+    data = "#1=PROPERTY_PARAMETER('a');#=PROPERTY_PARAMETER('lost id');#2=PROPERTY_PARAMETER('b');"
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [program(tmp_path, data)], lenient=True)
+    assert [(d.code, d.p21_id, d.line, d.column) for d in r.diagnostics] == [("P21-SYNTAX", None, 2, 28)]
+    assert instance_ids(store, r.graph) == {1, 2} and (r.instances, r.unreadable_texts) == (2, 1)
+    [(text, line, why)] = rows(store, r.graph, "?t ?l ?e", "?g p21:unreadableText [ p21:rawText ?t ; p21:line ?l ; "
+                                                           "p21:syntaxError ?e ]")
+    assert (text, line) == ("#=PROPERTY_PARAMETER('lost id');", "2") and "'#'" in why
+    exported = sg.export(store, "p21", r.graph).decode()
+    assert "#=PROPERTY_PARAMETER('lost id');" in exported
+    again = tmp_path / "again.stp"
+    again.write_text(exported)
+    [r2] = sg.load(sg.open_store(memory=True), [again])  # strict: the text is a comment
+    assert r2.instances == 2 and r2.diagnostics == []
+
+
+def test_a_reference_to_an_instance_inside_unreadable_text_is_reported(tmp_path: Path) -> None:
+    # '#2=' occurs, but inside the string of an unreadable instance: no instance #2 is loaded
+    data = "#1=PROPERTY_PARAMETER('x;#2=PROPERTY_PARAMETER(', 'a\\Q');\n#3=MATERIAL('s','m',(#2));"
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [program(tmp_path, data)], lenient=True)
+    assert instance_ids(store, r.graph) == {1, 3}
+    assert [(d.code, d.p21_id) for d in r.diagnostics] == [("P21-SYNTAX", 1), ("P21-UNRESOLVED-REF", 3)]
+    assert "#2" in r.diagnostics[1].message
+
+
+HUGE = "7" * 5000
+
+
+@pytest.mark.parametrize("data,p21_id", [
+    (f"#1=PROPERTY_PARAMETER({HUGE});", 1),
+    (f"#1=MATERIAL('s','m',(#{HUGE}));", 1),
+    (f"#{HUGE}=PROPERTY_PARAMETER('a');", None),
+])
+def test_a_huge_integer_is_a_positioned_error_never_a_traceback(data: str, p21_id: int | None, tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    path = program(tmp_path, data + "\n#5=PROPERTY_PARAMETER('after');")
+    ident = f" #{p21_id}:" if p21_id is not None else ""
+    cli = [sys.executable, "-m", "stepnc_graph.cli"]
+    strict = subprocess.run([*cli, "load", "--memory", str(path)], capture_output=True, text=True, timeout=120)
+    assert strict.returncode == 2 and "Traceback" not in strict.stderr, strict.stderr
+    assert f"{path}:2:" in strict.stderr and ident in strict.stderr and "5000 digits" in strict.stderr
+    lenient = subprocess.run([*cli, "load", "--memory", "--lenient", str(path)], capture_output=True, text=True,
+                             timeout=120)
+    assert lenient.returncode == 1 and "Traceback" not in lenient.stderr + lenient.stdout, lenient.stderr
+    assert "P21-SYNTAX" in lenient.stdout + lenient.stderr
+    validate = subprocess.run([*cli, "validate", str(path)], capture_output=True, text=True, timeout=120)
+    assert validate.returncode == 1 and "Traceback" not in validate.stderr + validate.stdout, validate.stderr
+    [result] = [line for line in validate.stdout.splitlines() if "5000 digits" in line]  # a positioned result
+    assert result.split()[:2] == ["line", "2"] and (p21_id is None or f"#{p21_id}" in result)

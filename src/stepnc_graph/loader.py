@@ -22,7 +22,15 @@ from stepnc_graph import __version__
 from stepnc_graph.mapping import terms as T
 from stepnc_graph.mapping.mapper import InstanceMapper
 from stepnc_graph.derive import derive, iso14649_rules
-from stepnc_graph.mapping.plan import P21_DUPLICATE, P21_LINE, P21_RAW_TEXT, iso14649_plans
+from stepnc_graph.mapping.plan import (
+    P21_DUPLICATE,
+    P21_LINE,
+    P21_RAW_TEXT,
+    P21_SECTION,
+    P21_SYNTAX_ERROR,
+    P21_UNREADABLE_TEXT,
+    iso14649_plans,
+)
 from stepnc_graph.naming import (
     P21_NS,
     TOOL_IRI,
@@ -76,6 +84,7 @@ class LoadResult:
     instances: int = 0
     raw: int = 0  # kept raw: do not fit the schema, or (unreadable) do not parse
     unreadable: int = 0
+    unreadable_texts: int = 0  # text that names no instance, kept (p21:unreadableText)
     triples: int = 0
     defined: int = 0
     derived_triples: int = 0
@@ -93,7 +102,7 @@ class LoadResult:
     def asdict(self) -> dict[str, Any]:
         return {
             "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
-            "unreadable_instances": self.unreadable,
+            "unreadable_instances": self.unreadable, "unreadable_texts": self.unreadable_texts,
             "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
             "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
         }
@@ -197,12 +206,14 @@ class _Load:
                     self.progress(inst.end, total)
         out.extend(self.aliases())
         out.extend(self.duplicates())
+        out.extend(self.unreadable_texts())
         result.triples += len(out)
         result.raw = self.mapper.raw_count
         result.lists_within_bounds = self.mapper.lists_within_bounds
         result.mandatory_values_set = self.mapper.mandatory_values_set
         result.lines = self.mapper.positions
         result.unreadable = len(self.mapper.unreadable)
+        result.unreadable_texts = len(self.reader.unreadable_texts)
         result.defined = self.reader.defined
         meta = self.metadata()
         result.triples += len(meta)
@@ -245,6 +256,21 @@ class _Load:
             out += [f"<{subject(i)}> {P21_DUPLICATE} {node} .\n",
                     f"{node} {P21_RAW_TEXT} {T.string(text[start:end])} .\n",
                     f"{node} {P21_LINE} {T.integer(line)} .\n"]
+        return out
+
+    def unreadable_texts(self) -> list[str]:
+        """Text that names no instance (lenient reading), on the graph's node: its text, line and
+        syntax error (and its DATA section, in a file with several)."""
+        g, text, section = f"<{self.graph}>", self.text, self.mapper.section
+        out: list[str] = []
+        for k, kept in enumerate(self.reader.unreadable_texts, start=1):
+            node = f"_:text{k}"
+            out += [f"{g} {P21_UNREADABLE_TEXT} {node} .\n",
+                    f"{node} {P21_RAW_TEXT} {T.string(text[kept.start:kept.end])} .\n",
+                    f"{node} {P21_LINE} {T.integer(kept.line)} .\n",
+                    f"{node} {P21_SYNTAX_ERROR} {T.string(kept.reason)} .\n"]
+            if section is not None:
+                out.append(f"{node} {P21_SECTION} <{section(kept.section)}> .\n")
         return out
 
     def metadata(self) -> list[str]:
@@ -303,16 +329,20 @@ class _Load:
         return sorted(found, key=lambda d: (d.line, d.column, d.code))
 
     def dangling(self, store: Store, where: str) -> list[Diagnostic]:
-        """References to instances the reader could not read (lenient mode only): from
-        mapped instances (found in the graph) and from raw ones (their parsed references)."""
+        """References to instances the reader could not read (lenient mode only), and to ``#id``s
+        whose ``#12=`` the file holds only inside a string or unreadable text (the mapper took
+        them as defined: it must know the names before reading): from mapped instances (found in
+        the graph) and from raw ones (their parsed references)."""
         unreadable = self.mapper.unreadable
-        if not unreadable:
+        external = {int(name[1:]) for name, _ in self.reader.header.references if name.startswith("#")}
+        missing = self.mapper.defined - self.reader.ids - external  # edition 3: defined in another file
+        if not unreadable and not missing:
             return []
         found: set[tuple[int, int, int, int]] = set()  # (line, column, referrer, target)
         for p21_id, line, column, refs in self.mapper.raw_refs:
-            found.update((line, column, p21_id, target) for target in refs if target in unreadable)
+            found.update((line, column, p21_id, target) for target in refs if target in unreadable or target in missing)
         prefix = instance_prefix(self.graph)
-        targets = " ".join(f"(<{prefix}i{t}> {t})" for t in sorted(unreadable))
+        targets = " ".join(f"(<{prefix}i{t}> {t})" for t in sorted(unreadable | missing))
         positions = self.mapper.positions  # None: the graph holds p21:id and p21:line
         owner = "?owner p21:id ?id ; p21:line ?line ." if positions is None else "FILTER(isIRI(?owner))"
         # From each unreadable instance back to the instances referring to it, directly or
@@ -332,7 +362,10 @@ class _Load:
             elif (ident := instance_id(self.graph, row["owner"].value)) is not None and ident in positions:
                 found.add((positions[ident], 1, ident, int(row["n"].value)))
         return [Diagnostic.make("P21-UNRESOLVED-REF", self.name, line, column, p21_id,
-                                f"refers to #{target}, which could not be read (see its syntax error)")
+                                f"refers to #{target}, which could not be read (see its syntax error)"
+                                if target in unreadable else
+                                f"refers to #{target}, which is not defined in the file ('#{target}=' occurs only "
+                                f"inside a string or text that could not be read)")
                 for line, column, p21_id, target in sorted(found)]
 
 

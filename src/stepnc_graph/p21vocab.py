@@ -60,6 +60,10 @@ TERMS: tuple[Term, ...] = (
                                           "comment."),
     # loaded files (subject: the named graph of one file)
     Term("ExchangeStructure", "class", "A Part 21 file loaded as one named graph; the graph IRI is the subject."),
+    Term("unreadableText", "object", "Text of the file that names no instance the reader could read (an instance "
+                                     "whose #id is damaged, junk between instances or sections, text after the end "
+                                     "marker): a node with its p21:rawText, p21:line and p21:syntaxError; the Part 21 "
+                                     "export writes it as a comment."),
     Term("headerText", "data", "The HEADER section of the file, verbatim, so the writer can restore it."),
     Term("repairedHeaderText", "data", "The HEADER section as the lenient reader repaired it; the export writes it, "
                                        "p21:headerText keeps the original."),

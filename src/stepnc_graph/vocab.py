@@ -1379,6 +1379,7 @@ class P21(DefinedNamespace):
     underlyingDatatype: URIRef
     underlyingType: URIRef
     uniqueRule: URIRef
+    unreadableText: URIRef
     unset: URIRef
     value: URIRef
     whereRule: URIRef

@@ -255,6 +255,7 @@ P21_UNREADABLE = f"<{P21_NS}UnreadableInstance>"
 P21_SYNTAX_ERROR = f"<{P21_NS}syntaxError>"
 P21_REPAIRED_TEXT = f"<{P21_NS}repairedText>"
 P21_DUPLICATE = f"<{P21_NS}duplicateDefinition>"
+P21_UNREADABLE_TEXT = f"<{P21_NS}unreadableText>"
 P21_UNSET = f"<{P21_NS}unset>"
 P21_UNKNOWN = f"{P21_NS}logicalUnknown"
 

@@ -7,7 +7,8 @@ order, SET members in ascending ``#id`` order (sets have no order; this keeps
 a set written in order unchanged) -- and each ``p21:RawInstance`` its source
 text, verbatim, or the text the lenient reader repaired (``p21:repairedText``).
 What the reader could not read (``p21:UnreadableInstance``, a later definition
-of an ``#id``) is written as a comment holding its text: the output always
+of an ``#id``, ``p21:unreadableText`` at the end of its DATA section) is written
+as a comment holding its text: the output always
 parses strictly, and nothing of the original is lost. Instances keep their
 ``p21:id``; nodes without one (added by SPARQL Update, say) get fresh ids above
 the largest.
@@ -32,6 +33,7 @@ from stepnc_graph.mapping.plan import (
     P21_REPAIRED_TEXT,
     P21_SECTION,
     P21_UNREADABLE,
+    P21_UNREADABLE_TEXT,
     P21_UNKNOWN,
     P21_UNSET,
     P21_VALUE,
@@ -103,21 +105,36 @@ class Part21Writer:
         header = text("repairedHeaderText") or text("headerText") or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
         # edition 3: ANCHOR and REFERENCE sections verbatim (ids are kept, so they still hold)
         extra = "".join(f"{t}\n" for t in (text("anchorSectionText"), text("referenceSectionText")) if t)
-        body = "".join(f"{opener}\n" + "\n".join(self._instance(i, key) for i, key in members) + "\nENDSEC;\n"
-                       for opener, members in self._sections(instances))
+        texts = self._unreadable_texts(meta) if graph is not None else []
+        body = "".join(f"{opener}\n" + "\n".join(parts) + "\nENDSEC;\n" for opener, parts in self._sections(instances, texts))
         return "ISO-10303-21;\n" + header + "\n" + extra + body + "END-ISO-10303-21;\n"
 
-    def _sections(self, instances: list[tuple[int, str]]) -> list[tuple[str, list[tuple[int, str]]]]:
-        """DATA sections in file order with their instances; one ``DATA;`` unless the graph
-        records several (instances without a section go to the first)."""
+    def _sections(self, instances: list[tuple[int, str]],
+                  texts: list[tuple[str | None, int, str]]) -> list[tuple[str, list[str]]]:
+        """DATA sections in file order with their instances' text, then the comments of the
+        unreadable text in them (``texts``: section, line, comment); one ``DATA;`` unless the
+        graph records several (instances without a section go to the first, texts to the last)."""
         section_of = {key: _key(v[0]) for _, key in instances if (v := self.props[key].get(P21_SECTION))}
-        if not section_of:
-            return [("DATA;", instances)]
-        order = sorted(set(section_of.values()), key=lambda s: int(self._first(s, "sectionIndex") or 0))
-        members: dict[str, list[tuple[int, str]]] = {s: [] for s in order}
+        keys = set(section_of.values()) | {s for s, _, _ in texts if s is not None}
+        order = sorted(keys, key=lambda s: int(self._first(s, "sectionIndex") or 0)) or [""]
+        members: dict[str, list[str]] = {s: [] for s in order}
         for i, key in instances:
-            members[section_of.get(key, order[0])].append((i, key))
-        return [(self._first(s, "sectionText") or "DATA;", members[s]) for s in order]
+            members[section_of.get(key, order[0])].append(self._instance(i, key))
+        for section, _, text in sorted(texts, key=lambda t: t[1]):
+            members[section if section is not None else order[-1]].append(text)
+        return [(self._first(s, "sectionText") or "DATA;" if s else "DATA;", members[s]) for s in order]
+
+    def _unreadable_texts(self, meta: str) -> list[tuple[str | None, int, str]]:
+        """The graph's ``p21:unreadableText``: (its DATA section, if recorded; line; the comment
+        that writes it)."""
+        out = []
+        for node in (_key(n) for n in self.props.get(meta, {}).get(P21_UNREADABLE_TEXT, [])):
+            sections = self.props[node].get(P21_SECTION)
+            line = int(self._first(node, "line") or 0)
+            why = self._first(node, "syntaxError") or "a syntax error"
+            out.append((_key(sections[0]) if sections else None, line, comment(
+                f"stepnc-graph: text at line {line} could not be read ({why}): {self._first(node, 'rawText') or ''}")))
+        return out
 
     def _first(self, key: str, term: str) -> str | None:
         """The value of the node's first ``p21:<term>`` triple, if it has one."""

@@ -5,8 +5,8 @@ parsed instances their meaning.
 """
 
 from stepnc_graph.part21.diagnostics import Diagnostic, Part21SyntaxError
-from stepnc_graph.part21.reader import Header, Instance, Part21Reader, read_file, read_text
+from stepnc_graph.part21.reader import Header, Instance, Part21Reader, UnreadableText, read_file, read_text
 from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
 __all__ = ["DERIVED", "UNSET", "Binary", "Diagnostic", "Enum", "Header", "Instance", "Name", "Part21Reader",
-           "Part21SyntaxError", "Ref", "Typed", "read_file", "read_text"]
+           "Part21SyntaxError", "Ref", "Typed", "UnreadableText", "read_file", "read_text"]

@@ -17,11 +17,13 @@ Severity = Literal["error", "warning", "info"]
 
 CODES: dict[str, tuple[Severity, str]] = {
     # syntax (reader)
-    "P21-SYNTAX": ("error", "the instance does not parse; its text is kept (p21:UnreadableInstance)"),
+    "P21-SYNTAX": ("error", "the instance does not parse; its text is kept (p21:UnreadableInstance, or "
+                            "p21:unreadableText when no #id names it)"),
     "P21-DUPLICATE-ID": ("error", "an instance name is defined twice; the later definition's text is kept, "
                                   "not loaded"),
     "P21-TRUNCATED": ("error", "the file ends inside a DATA section: it looks cut short"),
     "P21-END-MISSING": ("warning", "END-ISO-10303-21; is missing at the end of the file"),
+    "P21-ENDSEC-MISSING": ("warning", "ENDSEC; is missing before the next DATA section or END-ISO-10303-21;"),
     "P21-OUTSIDE-SECTION": ("warning", "an instance outside a DATA section; read into the preceding one"),
     "P21-ENCODING": ("warning", "a byte that is not UTF-8; read as ISO 8859-1"),
     "P21-CURLY-QUOTE": ("warning", "a string was closed by a typographic quote; read as closed there"),

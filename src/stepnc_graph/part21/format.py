@@ -8,6 +8,7 @@ not valid Part 21, its parsed form is). The RDF writer shares
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from stepnc_graph.part21.reader import Header, Instance
@@ -30,8 +31,16 @@ def format_real(value: float) -> str:
     return text
 
 
+def _read_real(value: float) -> str:
+    """A REAL as the reader read it: one beyond a double's range was read as infinity and is
+    written as a REAL beyond it again, which reads back the same (``1.E999``)."""
+    if math.isinf(value):
+        return "1.E999" if value > 0 else "-1.E999"
+    return format_real(value)
+
+
 def format_value(value: Any) -> str:
-    """The Part 21 text of one parsed parameter value."""
+    """The Part 21 text of one parameter value the reader parsed."""
     if value is UNSET:
         return "$"
     if value is DERIVED:
@@ -52,7 +61,7 @@ def format_value(value: Any) -> str:
     if kind is int:
         return str(value)
     if kind is float:
-        return format_real(value)
+        return _read_real(value)
     if kind is str:
         return encode(value)
     raise FormatError(f"unexpected value {value!r}")

@@ -14,13 +14,20 @@ instances in memory -- only its text.
 Strict mode raises :class:`Part21SyntaxError` at the first syntax error.
 Lenient mode repairs what can be repaired safely (a typographic quote closing
 a string, a missing ``;``, an enumeration written without dots, an EXPRESS
-remark between instances) with a warning, drops an instance it cannot read with
-an error diagnostic naming its ``#id``, and goes on at the next instance.
+remark between instances) with a warning, keeps an instance it cannot read as
+its text with an error diagnostic naming its ``#id``, and goes on at the next
+instance boundary -- the end of the statement, found by the tokenizer (so a
+``;`` inside a string is none), or the next ``#12=`` -- never at the next line:
+files written on one line exist. Text that names no instance (``#=A(1);``,
+junk between sections, text after the end marker) is kept as well
+(:class:`UnreadableText`): every byte of the file is data, structure, a comment
+or reported text.
 """
 
 from __future__ import annotations
 
 import re
+import sys
 from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,10 +60,9 @@ TOKEN = re.compile(
 _MAGIC = re.compile(r"(?:[ \t\r\n\f\v]+|/\*.*?\*/)*ISO-10303-21[ \t\r\n]*;", re.S)
 _END = re.compile(r"END-ISO-10303-21[ \t\r\n]*;", re.S)
 _SIGNATURE = re.compile(r"[ \t\r\n]*(SIGNATURE\b.*?\bENDSEC[ \t\r\n]*;)", re.S)
-_NEXT_STATEMENT = re.compile(r"(?m)^[ \t]*(?=#[0-9]+[ \t]*=)|\bENDSEC\b")
-#: where lenient reading can resume after something that is not a section: an
-#: instance, a section keyword or the end marker
-_RESUME = re.compile(r"(?m)^[ \t]*(?=#[0-9]+[ \t]*=)|\b(?:DATA|ENDSEC|END-ISO-10303-21)\b")
+#: inside a string token: a ';' and the start of an instance -- the string may be one whose
+#: closing quote is missing (see Part21Reader._boundary)
+_CUT = re.compile(r";[ \t\r\n]*#[0-9]+[ \t\r\n]*=")
 _DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
 _COMMENT = re.compile(r"/\*.*?\*/", re.S)
 _ENTITY_NAME = re.compile(r"#[0-9]+[ \t\r\n]*=[ \t\r\n]*([A-Za-z_][A-Za-z0-9_]*)")
@@ -93,6 +99,36 @@ class Instance:
     @property
     def names(self) -> list[str]:
         return [self.name] if self.name is not None else [n for n, _ in self.parts or ()]
+
+
+@dataclass(frozen=True, slots=True)
+class UnreadableText:
+    """Lenient mode: text that is no instance the reader could name -- an instance whose
+    ``#id`` is damaged (``#=A(1);``), junk between instances or sections, text after
+    ``END-ISO-10303-21;`` -- kept (``start:end`` of the file) so that nothing is lost."""
+
+    start: int
+    end: int
+    line: int
+    column: int
+    section: int  # the DATA section (0-based) it is in or follows
+    reason: str  # the syntax error, as reported
+
+
+def _integer(digits: str, pos: int, what: str) -> int:
+    """``int(digits)``, or the syntax error for an integer longer than the interpreter reads
+    (``sys.get_int_max_str_digits()``, 4,300 by default: ``int()`` refuses more)."""
+    try:
+        return int(digits)
+    except ValueError:
+        raise _too_long(digits, pos, what) from None
+
+
+def _too_long(digits: str, pos: int, what: str) -> "_Failure":
+    n = len(digits.lstrip("+-#"))
+    limit = sys.get_int_max_str_digits()
+    return _Failure(f"{what} of {n} digits: longer than the {limit} digits an integer may have", pos,
+                    (f"an integer of at most {limit} digits",))
 
 
 @dataclass
@@ -155,6 +191,9 @@ class Part21Reader:
         self._truncated = False  # lenient: the file ended inside a DATA section (reported once)
         #: lenient: later definitions of an #id, not loaded: (#id, start, end, line) of their text
         self.duplicate_texts: list[tuple[int, int, int, int]] = []
+        #: lenient: text that names no instance, kept (see UnreadableText)
+        self.unreadable_texts: list[UnreadableText] = []
+        self._stray = False  # the section being read was reopened for an instance after its ENDSEC;
         self._line = 1
         self._line_start = 0
         self._cursor = 0  # offset up to which _line/_line_start are exact
@@ -163,18 +202,32 @@ class Part21Reader:
             self._pos = self._read_reference_sections(self._pos)
         except _Failure as failure:
             raise self._syntax_error(failure, None) from None
+        #: where the DATA sections begin: everything before is the HEADER, ANCHOR and REFERENCE
+        #: sections (kept verbatim in ``header``)
+        self.body_start = self._pos
+
+    @property
+    def ids(self) -> set[int]:
+        """The ``#id``s of the instances read so far (unreadable ones included, later
+        definitions of an ``#id`` not)."""
+        return self._ids
 
     # -- positions ------------------------------------------------------------
 
     def position(self, offset: int) -> tuple[int, int]:
-        """1-based (line, column) of ``offset``; incremental, so cheap when offsets grow."""
-        if offset < self._cursor:
-            self._line, self._line_start, self._cursor = 1, 0, 0
+        """1-based (line, column) of ``offset``; incremental from the last offset asked for, either
+        way, so that a diagnostic a little before the last one does not recount the file."""
         text = self.text
-        n = text.count("\n", self._cursor, offset)
-        if n:
-            self._line += n
-            self._line_start = text.rfind("\n", self._cursor, offset) + 1
+        if offset < self._cursor:
+            n = text.count("\n", offset, self._cursor)
+            if n:
+                self._line -= n
+                self._line_start = text.rfind("\n", 0, offset) + 1
+        else:
+            n = text.count("\n", self._cursor, offset)
+            if n:
+                self._line += n
+                self._line_start = text.rfind("\n", self._cursor, offset) + 1
         self._cursor = offset
         return self._line, offset - self._line_start + 1
 
@@ -236,84 +289,89 @@ class Part21Reader:
         typed: str | None = None
         expect_value = True
         unclosed = self._unclosed_from
-        while True:
-            if pos >= unclosed and text.startswith("/*", pos):
-                raise _Failure("comment '/*' is never closed", pos, ("*/",))
-            m = match(text, pos)
-            if m is None:
-                raise _Failure("unexpected end of file inside a parameter list", pos, (")",))
-            kind = m.lastgroup or "bad"
-            start = pos
-            pos = m.end()
-            if kind == "ws":
-                continue
-            tok = m.group()
-            if expect_value:
-                if kind == "ref":
-                    current.append(Ref(tok[1:]))
-                elif kind == "real":
-                    current.append(float(tok))
-                elif kind == "int":
-                    current.append(int(tok))
-                elif kind == "str":
-                    value, pos = self._string(tok, start, pos, p21_id)
-                    current.append(value)
-                elif kind == "enum":
-                    current.append(Enum(tok[1:-1].upper()))
-                elif kind == "p":
-                    if tok == "$":
-                        current.append(UNSET)
-                    elif tok == "*":
-                        current.append(DERIVED)
-                    elif tok == "(":
-                        if len(stack) >= _MAX_DEPTH:
-                            raise _Failure(f"lists nested deeper than {_MAX_DEPTH}", start)
-                        stack.append((current, typed))
-                        current, typed = [], None
-                        continue
-                    elif tok == ")" and not current and typed is None:
-                        expect_value = False  # empty list
-                        pos = start
-                        continue
+        try:
+            while True:
+                if pos >= unclosed and text.startswith("/*", pos):
+                    raise _Failure("comment '/*' is never closed", pos, ("*/",))
+                m = match(text, pos)
+                if m is None:
+                    raise _Failure("unexpected end of file inside a parameter list", pos, (")",))
+                kind = m.lastgroup or "bad"
+                start = pos
+                pos = m.end()
+                if kind == "ws":
+                    continue
+                tok = m.group()
+                if expect_value:
+                    if kind == "ref":
+                        current.append(Ref(tok[1:]))
+                    elif kind == "real":
+                        current.append(float(tok))
+                    elif kind == "int":
+                        current.append(int(tok))
+                    elif kind == "str":
+                        value, pos = self._string(tok, start, pos, p21_id)
+                        current.append(value)
+                    elif kind == "enum":
+                        current.append(Enum(tok[1:-1].upper()))
+                    elif kind == "p":
+                        if tok == "$":
+                            current.append(UNSET)
+                        elif tok == "*":
+                            current.append(DERIVED)
+                        elif tok == "(":
+                            if len(stack) >= _MAX_DEPTH:
+                                raise _Failure(f"lists nested deeper than {_MAX_DEPTH}", start)
+                            stack.append((current, typed))
+                            current, typed = [], None
+                            continue
+                        elif tok == ")" and not current and typed is None:
+                            expect_value = False  # empty list
+                            pos = start
+                            continue
+                        else:
+                            raise _Failure(f"expected a parameter value, found {show(tok)}", start,
+                                           ("value", "$", "*", "("))
+                    elif kind == "kw":
+                        nkind, ntok, nstart, nend = self._token(pos)
+                        if ntok == "(":
+                            if len(stack) >= _MAX_DEPTH:
+                                raise _Failure(f"lists nested deeper than {_MAX_DEPTH}", start)
+                            stack.append((current, typed))
+                            current, typed, pos = [], tok.upper(), nend
+                            continue
+                        if not self.lenient:
+                            raise _Failure(f"expected a parameter value, found {show(tok)} (enumeration values are "
+                                           f"written .{tok.upper()}.)", start, ("value",))
+                        self._diagnose("P21-BARE-ENUM", start, p21_id, f"{show(tok)} read as .{tok.upper()[:40]}.")
+                        current.append(Enum(tok.upper()))
+                    elif kind == "bin":
+                        current.append(Binary(tok[1:-1]))
+                    elif kind == "name":
+                        current.append(Name(tok))
                     else:
-                        raise _Failure(f"expected a parameter value, found {show(tok)}", start,
-                                       ("value", "$", "*", "("))
-                elif kind == "kw":
-                    nkind, ntok, nstart, nend = self._token(pos)
-                    if ntok == "(":
-                        if len(stack) >= _MAX_DEPTH:
-                            raise _Failure(f"lists nested deeper than {_MAX_DEPTH}", start)
-                        stack.append((current, typed))
-                        current, typed, pos = [], tok.upper(), nend
-                        continue
-                    if not self.lenient:
-                        raise _Failure(f"expected a parameter value, found {show(tok)} (enumeration values are "
-                                       f"written .{tok.upper()}.)", start, ("value",))
-                    self._diagnose("P21-BARE-ENUM", start, p21_id, f"{show(tok)} read as .{tok.upper()[:40]}.")
-                    current.append(Enum(tok.upper()))
-                elif kind == "bin":
-                    current.append(Binary(tok[1:-1]))
-                elif kind == "name":
-                    current.append(Name(tok))
+                        raise self._bad_token(kind, tok, start, ("value",))
+                    expect_value = False
                 else:
-                    raise self._bad_token(kind, tok, start, ("value",))
-                expect_value = False
-            else:
-                if tok == ",":
-                    expect_value = True
-                elif tok == ")":
-                    finished, finished_typed = current, typed
-                    if not stack:
-                        return finished, pos
-                    current, typed = stack.pop()
-                    if finished_typed is not None:
-                        if len(finished) != 1:
-                            raise _Failure(f"typed parameter {finished_typed} needs exactly one value", start)
-                        current.append(Typed(finished_typed, finished[0]))
+                    if tok == ",":
+                        expect_value = True
+                    elif tok == ")":
+                        finished, finished_typed = current, typed
+                        if not stack:
+                            return finished, pos
+                        current, typed = stack.pop()
+                        if finished_typed is not None:
+                            if len(finished) != 1:
+                                raise _Failure(f"typed parameter {finished_typed} needs exactly one value", start)
+                            current.append(Typed(finished_typed, finished[0]))
+                        else:
+                            current.append(finished)
                     else:
-                        current.append(finished)
-                else:
-                    raise self._bad_token(kind or "bad", tok, start, (",", ")"))
+                        raise self._bad_token(kind or "bad", tok, start, (",", ")"))
+        except ValueError:  # int() refuses an integer longer than sys.get_int_max_str_digits()
+            if kind not in ("int", "ref"):  # pragma: no cover - nothing else raises ValueError here
+                raise
+            raise _too_long(tok, start, "a reference" if kind == "ref" else "an integer") from None
 
     def _bad_token(self, kind: str, tok: str, start: int, expected: tuple[str, ...]) -> _Failure:
         if kind == "bad" and tok == "'":
@@ -407,7 +465,7 @@ class Part21Reader:
         if tok == "(":
             return self._params(pos, None)
         if kind == "ref":
-            return Ref(tok[1:]), end
+            return Ref(_integer(tok[1:], start, "an instance name")), end
         if kind in ("name", "uri", "int", "real", "str", "enum", "bin") or tok == "$":
             return Name(tok), end
         raise _Failure(f"expected an anchor item, found {show(tok)}", start, ("#id", "value", "<resource>"))
@@ -420,6 +478,8 @@ class Part21Reader:
                 return self._expect(end, ";")
             if kind not in ("ref", "name") or not tok[1:2].isdigit():  # a constant is not defined here
                 raise _Failure(f"expected #id, @id or ENDSEC, found {show(tok)}", start, ("#id", "@id", "ENDSEC"))
+            if kind == "ref":
+                _integer(tok[1:], start, "an instance name")  # the loader names the instance by it
             ukind, utok, ustart, uend = self._token(self._expect(end, "="))
             if ukind != "uri":
                 raise _Failure(f"expected a resource <uri>, found {show(utok)}", ustart, ("<uri>",))
@@ -430,14 +490,19 @@ class Part21Reader:
         """After ``DATA;``/``DATA(...);`` return the offset; at the end of the file return None."""
         kind, tok, start, end = self._token(pos)
         if kind == "kw" and tok.upper() == "DATA":
-            nkind, ntok, _, nend = self._token(end)
-            if ntok == "(":
+            params: list[Any] = []
+            if self._token(end)[1] == "(":
                 params, end = self._params(end, None)
-                self.header.data_sections.append(params)
-            else:
-                self.header.data_sections.append([])
-            end = self._expect(end, ";")
-            self.header.data_section_texts.append(self.text[start:end])
+            try:
+                end = self._expect(end, ";")
+                opener = self.text[start:end]
+            except _Failure:
+                if not (self.lenient and self._statement_follows(end)):
+                    raise
+                self._diagnose("P21-MISSING-SEMICOLON", end, None, "';' missing after DATA; read as present")
+                opener = self.text[start:end] + ";"
+            self.header.data_sections.append(params)
+            self.header.data_section_texts.append(opener)
             return end
         m = _END.match(self.text, start)
         if m is not None:
@@ -445,9 +510,11 @@ class Part21Reader:
             while (sig := _SIGNATURE.match(self.text, after)) is not None:
                 self.header.signatures.append(sig.group(1))
                 after = sig.end()
+            self._after_end(after)
             return None
         if self.lenient and self.text.startswith("END-ISO-10303-21", start):
             self._diagnose("P21-MISSING-SEMICOLON", start, None, "';' missing after END-ISO-10303-21; read as present")
+            self._after_end(start + len("END-ISO-10303-21"))
             return None
         if kind == "eof" and self.lenient:
             if not self._truncated:
@@ -457,6 +524,26 @@ class Part21Reader:
         raise _Failure(f"expected DATA or END-ISO-10303-21, found {show(tok)}" if tok else
                        "expected DATA or END-ISO-10303-21, found end of file", start,
                        ("DATA", "END-ISO-10303-21;"))
+
+    def _after_end(self, pos: int) -> None:
+        """Nothing but white space and comments may follow the end marker and its signatures
+        (ISO 10303-21:2016, 13): anything else is an error; lenient, kept as text."""
+        kind, tok, start, _ = self._token(pos)
+        if kind == "eof":
+            return
+        failure = _Failure(f"text after END-ISO-10303-21;, found {show(tok)}", start, ("end of file",))
+        if not self.lenient:
+            raise self._syntax_error(failure, None, recoverable=True)
+        self._keep_text(start, len(self.text), failure.message, max(len(self.header.data_sections) - 1, 0))
+
+    def _keep_text(self, start: int, end: int, message: str, section: int) -> None:
+        """Lenient: report the text ``start:end`` (up to its last non-blank character) that names
+        no instance, and keep it (:class:`UnreadableText`)."""
+        end = start + len(self.text[start:end].rstrip())
+        line, column = self.position(start)
+        self.diagnostics.append(Diagnostic.make("P21-SYNTAX", self.filename, line, column, None,
+                                                f"{message}; kept as text"))
+        self.unreadable_texts.append(UnreadableText(start, end, line, column, section, message))
 
     def instances(self) -> Iterator[Instance]:
         """Yield every instance of every DATA section, in file order."""
@@ -470,9 +557,9 @@ class Part21Reader:
     def _next_section(self, pos: int) -> int | None:
         """The offset after the next section opener; None at the end of the file.
 
-        Lenient: text where a section should start is skipped (and reported) up to
-        the next instance or section keyword; an instance found there is read into
-        the preceding DATA section.
+        Lenient: text where a section should start is kept (and reported) up to the
+        next instance boundary; an instance found there is read into the preceding
+        DATA section (which the next ``END-ISO-10303-21;``, ``DATA`` or ``ENDSEC;`` closes).
         """
         while True:
             try:
@@ -480,29 +567,50 @@ class Part21Reader:
             except _Failure as failure:
                 if not self.lenient:
                     raise self._syntax_error(failure, None, recoverable=True) from None
-                stop, message = failure.pos, failure.message
-            kind, tok, start, _ = self._token(stop)
-            if kind == "ref" and _INSTANCE_START.match(self.text, start):
-                self._diagnose("P21-OUTSIDE-SECTION", start, int(tok[1:]),
+                kind, tok, start, end = self._token(pos)  # the statement that failed
+                message = self._where(failure, start)
+            if kind == "ref" and self._token(end)[1] == "=":
+                self._diagnose("P21-OUTSIDE-SECTION", start, self._name(tok),
                                "instance outside a DATA section; read into the preceding one")
                 if not self.header.data_sections:
                     self.header.data_sections.append([])
                     self.header.data_section_texts.append("DATA;")
+                self._stray = True
                 return start
-            m = _RESUME.search(self.text, stop + 1)
-            skipped = self.text[stop: m.start() if m else len(self.text)].strip()
-            if skipped:
-                self._diagnose("P21-SYNTAX", stop, None, f"{message}; {len(skipped)} characters skipped")
-            if m is None:
+            section = max(len(self.header.data_sections) - 1, 0)
+            boundary = self._boundary(start)
+            if boundary is None:
+                self._keep_text(start, len(self.text), message, section)
                 self._truncated = True  # reported: no end-marker warning on top
                 return None
-            pos = m.start()
+            self._keep_text(start, boundary[0], message, section)
+            pos = boundary[1]
+
+    def _statement_follows(self, pos: int) -> bool:
+        """Whether an instance (``#12=``) or ``ENDSEC`` comes next: a ``;`` before it was left out."""
+        kind, tok, _, end = self._token(pos)
+        return (kind == "ref" and self._token(end)[1] == "=") or (kind == "kw" and tok.upper() == "ENDSEC")
+
+    def _name(self, tok: str) -> int | None:
+        """The #id of an instance name token; None when it is too long for ``int()``."""
+        try:
+            return int(tok[1:])
+        except ValueError:
+            return None
 
     def _data_section(self, pos: int, index: int) -> Generator[Instance, None, int]:
+        stray, self._stray = self._stray, False
         while True:
             kind, tok, start, end = self._token(pos)
-            if kind == "kw" and tok.upper() == "ENDSEC":
-                return self._end_of_section(end)
+            if kind == "kw":
+                upper = tok.upper()
+                if upper == "ENDSEC":
+                    return self._end_of_section(end)
+                if self.lenient and self._section_closer(upper, start, end):
+                    if not stray:
+                        self._diagnose("P21-ENDSEC-MISSING", start, None,
+                                       f"'ENDSEC;' missing before {show(tok)}; read as present")
+                    return start
             if kind == "p" and tok == "(" and self.lenient and self.text.startswith("(*", start):
                 close = self.text.find("*)", start + 2)
                 if close >= 0:
@@ -513,21 +621,28 @@ class Part21Reader:
                 if not self.lenient:
                     raise self._syntax_error(_Failure("unexpected end of file in DATA section", start, ("ENDSEC",)),
                                              None, recoverable=True)
-                if not self._truncated:
+                if not self._truncated and not stray:  # a reopened section had its ENDSEC
                     self._truncate(start, None)
                 return start
-            p21_id = int(tok[1:]) if kind == "ref" else None
+            p21_id = None
+            if kind == "ref":
+                try:
+                    p21_id = int(tok[1:])
+                except ValueError:  # longer than int() reads: reported below
+                    pass
             first = len(self.diagnostics)
             try:
                 if p21_id is None:
+                    if kind == "ref":
+                        raise _too_long(tok, start, "an instance name")
                     raise self._bad_token(kind, tok, start, ("#id", "ENDSEC"))
                 instance, pos = self._instance(p21_id, start, end)
             except _Failure as failure:
                 if not self.lenient:
                     raise self._syntax_error(failure, p21_id, recoverable=True) from None
-                broken, pos = self._recover(failure, p21_id, start)
+                del self.diagnostics[first:]  # repairs inside what is now kept as text
+                broken, pos = self._recover(failure, p21_id, start, index)
                 if broken is not None:
-                    broken.section = index
                     yield broken
                 continue
             instance.repaired = len(self.diagnostics) > first
@@ -542,6 +657,13 @@ class Part21Reader:
             self._ids.add(instance.id)
             instance.section = index
             yield instance
+
+    def _section_closer(self, upper: str, start: int, end: int) -> bool:
+        """Whether the keyword ``upper`` at ``start`` opens the next DATA section or the end
+        marker: a DATA section left without its ``ENDSEC;``."""
+        if upper == "DATA":
+            return self._token(end)[1] in (";", "(")
+        return upper == "END" and self.text.startswith("END-ISO-10303-21", start)
 
     def _end_of_section(self, end: int) -> int:
         """After ``ENDSEC``: its ``;`` (lenient: a missing one is reported and assumed)."""
@@ -598,24 +720,28 @@ class Part21Reader:
         line, column = self.position(start)
         return Instance(p21_id, name, params, line, column, start, end, parts), end
 
-    def _recover(self, failure: _Failure, p21_id: int | None, start: int) -> tuple[Instance | None, int]:
-        """Report what could not be read; return it as an unreadable instance (when it has
-        an ``#id`` not defined before) and the offset of the next statement."""
-        m = _NEXT_STATEMENT.search(self.text, max(failure.pos, start + 1))
-        resume = m.start() if m else len(self.text)
-        at_end = m is None  # nothing readable follows: the file stops inside this statement
-        if p21_id is not None:
-            self.defined += 1
-        if at_end:  # the file stops inside this statement
+    def _recover(self, failure: _Failure, p21_id: int | None, start: int,
+                 section: int) -> tuple[Instance | None, int]:
+        """Report what could not be read and keep its text: as an unreadable instance (when it
+        has an ``#id`` not defined before), as a later definition of its ``#id``, or as text
+        that names no instance. Returns the instance and the offset where reading goes on."""
+        boundary = self._boundary(start)
+        end, resume = boundary if boundary is not None else (len(self.text), len(self.text))
+        if boundary is None:  # nothing readable follows: the file stops inside this statement
             self._truncate(start, p21_id)
-        else:
-            line, column = self.position(failure.pos)
-            where = f" at line {line}, column {column}" if failure.pos != start else ""
-            kept = "; kept as text" if p21_id is not None and p21_id not in self._ids else "; not loaded"
-            self._diagnose("P21-SYNTAX", start, p21_id, f"{failure.message}{where}{kept}")
         if p21_id is None:
+            if boundary is None:
+                end = start + len(self.text[start:end].rstrip())
+                line, column = self.position(start)
+                self.unreadable_texts.append(UnreadableText(start, end, line, column, section, failure.message))
+            else:
+                self._keep_text(start, end, self._where(failure, start), section)
             return None, resume
-        end = start + len(self.text[start:resume].rstrip())
+        self.defined += 1
+        if boundary is not None:
+            kept = "; kept as text" if p21_id not in self._ids else "; not loaded"
+            self._diagnose("P21-SYNTAX", start, p21_id, f"{self._where(failure, start)}{kept}")
+        end = start + len(self.text[start:end].rstrip())
         if p21_id in self._ids:
             self.duplicate_texts.append((p21_id, start, end, self.position(start)[0]))
             return None, resume
@@ -623,7 +749,70 @@ class Part21Reader:
         named = _ENTITY_NAME.match(self.text, start)
         line, column = self.position(start)
         return Instance(p21_id, named.group(1).upper() if named else None, [], line, column, start, end,
-                        unreadable=failure.message), resume
+                        section=section, unreadable=failure.message), resume
+
+    def _where(self, failure: _Failure, start: int) -> str:
+        """The failure's message, with its position when that is not the statement's start."""
+        if failure.pos == start:
+            return failure.message
+        line, column = self.position(failure.pos)
+        return f"{failure.message} at line {line}, column {column}"
+
+    def _boundary(self, start: int) -> tuple[int, int] | None:
+        """(end, resume): where the damaged statement at ``start`` ends and where reading goes
+        on; None when the file ends first.
+
+        Tokens are read as the parser reads them, so a ``;`` or ``#12=`` inside a string or
+        a comment is no boundary. The statement ends after the first ``;`` outside parentheses
+        (or, with its nesting damaged, before the next ``#12=``, ``ENDSEC``, ``DATA;`` or
+        ``END-ISO-10303-21`` at any depth). One repair: a string that holds ``;#12=`` and is
+        not followed by ``,`` or ``)`` as a parameter must be, is taken to have lost its
+        closing quote -- the statement ends at that ``;``, and the next instance starts
+        after it, as it does on the next line of a file written one instance a line.
+        """
+        depth = 0
+        pos = start
+        cut: int | None = None  # after the ';' in the string just read, if it may be unclosed
+        previous = ""
+        while True:
+            kind, tok, tstart, tend = self._token(pos)
+            if cut is not None and tok not in (",", ")"):
+                return cut, cut
+            cut = None
+            if kind == "eof":
+                return None
+            if kind == "str":
+                m = _CUT.search(tok)
+                if m is not None:
+                    cut = tstart + m.start() + 1
+            elif tok == "(":
+                depth += 1
+            elif tok == ")":
+                depth = max(depth - 1, 0)
+            elif tok == ";" and depth == 0:
+                return tend, tend
+            elif tstart > start and self._statement_start(kind, tok, tstart, tend, depth, previous):
+                return start + len(self.text[start:tstart].rstrip()), tstart
+            previous = tok
+            pos = tend
+
+    def _statement_start(self, kind: str, tok: str, start: int, end: int, depth: int, previous: str) -> bool:
+        """Whether the token (``start:end``) starts a statement: an instance ``#12=``, ``ENDSEC``,
+        ``END-ISO-10303-21``, ``DATA;``, or ``DATA(`` outside parentheses and not after ``=``
+        (where it would be an entity named DATA)."""
+        if kind == "ref":
+            return self._token(end)[1] == "="
+        if kind != "kw":
+            return False
+        upper = tok.upper()
+        if upper == "ENDSEC":
+            return True
+        if upper == "END":
+            return self.text.startswith("END-ISO-10303-21", start)
+        if upper == "DATA":
+            follows = self._token(end)[1]
+            return follows == ";" or (follows == "(" and depth == 0 and previous != "=")
+        return False
 
 
 def defined_ids(text: str) -> set[int]:
@@ -639,7 +828,8 @@ def defined_ids(text: str) -> set[int]:
     if "/*" in text:
         closed = text.rfind("*/") + 2
         text = _COMMENT.sub(" ", text[:closed]) + text[closed:] if closed > 1 else text
-    return {int(x) for x in _DEFINITION.findall(text)}
+    limit = sys.get_int_max_str_digits() or len(text)  # a longer one is no name the reader accepts
+    return {int(x) for x in _DEFINITION.findall(text) if len(x) <= limit}
 
 
 def read_text(text: str, filename: str = "<string>", lenient: bool = False) -> Part21Reader:

@@ -12,7 +12,8 @@ from __future__ import annotations
 import re
 
 _CODE_PAGES = {c: f"iso8859_{i}" for i, c in enumerate("ABCDEFGHI", start=1)}
-_ESCAPE = re.compile(r"\\(?:\\|S\\(.)|P([A-I])\\|X\\([0-9A-Fa-f]{2})|X2\\((?:[0-9A-Fa-f]{4})*)\\X0\\|"
+#: ``\S\c`` shifts a character of the basic alphabet (space to '~') to the upper half
+_ESCAPE = re.compile(r"\\(?:\\|S\\([ -~])|P([A-I])\\|X\\([0-9A-Fa-f]{2})|X2\\((?:[0-9A-Fa-f]{4})*)\\X0\\|"
                      r"X4\\((?:[0-9A-Fa-f]{8})*)\\X0\\|N\\|F\\)", re.S)
 
 
