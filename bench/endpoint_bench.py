@@ -11,7 +11,7 @@ from the ``oxigraph`` PyPI package, on a loopback port, persistent in a temporar
   (staging graphs uploaded over the Graph Store Protocol, then swapped in by one SPARQL Update), each
   as a user runs it, ``--load-repeat`` times alternating: median wall seconds, the CLI's CPU seconds,
   and for the endpoint the server's CPU seconds too (read from /proc for its pid).
-* **queries**: every library query through the Python API (:func:`stepnc_graph.query.execute`,
+* **queries**: every library query through the Python API (:func:`stepnc_graph.querying.query.execute`,
   results written as SPARQL 1.1 JSON) on the embedded store and on the endpoint: one warm-up, then
   ``--repeat`` runs, medians of wall milliseconds and the endpoint's server CPU milliseconds; the
   ratio endpoint / embedded; row counts compared (they must agree).
@@ -56,7 +56,7 @@ def timed_cli(args: list[str], server: OxigraphServer | None = None) -> dict[str
 
 
 def measure_queries(store: Any, repeat: int, server: OxigraphServer | None = None) -> dict[str, dict[str, float]]:
-    from stepnc_graph.query import execute, library
+    from stepnc_graph.querying.query import execute, library
 
     out = {}
     for q in library():
@@ -77,7 +77,7 @@ def med(runs: list[dict[str, float]], key: str) -> float:
 
 
 def run(size: int, repeat: int, load_repeat: int) -> None:
-    from stepnc_graph.remote import open_remote
+    from stepnc_graph.store.remote import open_remote
     from stepnc_graph.store import GraphStore
 
     work = Path(tempfile.mkdtemp(prefix="stepnc-endpoint-"))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import express_schema.parse as library
 
-from stepnc_graph.build import generate
+from stepnc_graph.artefacts.build import generate
 from stepnc_graph.express import parse_file
 from stepnc_graph.schema.catalog import load_catalog_model
 

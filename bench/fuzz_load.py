@@ -9,14 +9,14 @@ Seeds are the project's own programs (examples/, tests/fixtures/p21/) and, when
 byte flips, a deleted or repeated span, a splice of another program, an inserted
 nasty token; the program joined onto one line or with several instances a line,
 then an instance broken; huge integers, reals, #ids, references: see
-stepnc_graph.fuzz) checked by stepnc_graph.fuzz.check: no exception but the
+stepnc_graph.testing.fuzz) checked by stepnc_graph.testing.fuzz.check: no exception but the
 documented ones, every byte of the DATA sections loaded or kept or reported, every
 reference to a missing instance reported, an export that parses strictly and keeps
 every kept text. A JSON-LD input (--jsonld-share of them) is a seed's export
-(stepnc_graph.export) damaged: contexts naming a URL of a loopback listener each
+(stepnc_graph.exporting.exporter) damaged: contexts naming a URL of a loopback listener each
 worker runs (which must receive nothing; an audit hook also records any socket
 use), huge numbers, bad @id IRIs, deep nesting, long @list, byte damage; checked
-by stepnc_graph.fuzz.check_jsonld. Each input runs in a worker process limited to
+by stepnc_graph.testing.fuzz.check_jsonld. Each input runs in a worker process limited to
 --memory-mb of address space and --timeout CPU seconds. Prints counts per damage
 and outcome, and failures by kind; inputs that break a promise are saved under
 --failures/p21 or --failures/jsonld for replay (--shrink: also a reduced copy of
@@ -68,7 +68,7 @@ _LISTENER: list[object] = []
 
 
 def _init(memory_mb: int, docs: list[bytes]) -> None:
-    from stepnc_graph.fuzz import LoopbackListener, watch_network
+    from stepnc_graph.testing.fuzz import LoopbackListener, watch_network
 
     resource.setrlimit(resource.RLIMIT_AS, (memory_mb << 20, memory_mb << 20))
     _DATA.extend(p.read_bytes() for p in seeds())
@@ -87,7 +87,7 @@ def _alarm(*_: object) -> None:
 
 def one(job: tuple[int, int, float, list[str] | None]) -> tuple[int, str, str, str, bytes]:
     """(index, damage, status, detail, input) of one input; ``index`` seeds its randomness."""
-    from stepnc_graph.fuzz import JSONLD_KINDS, KINDS, check, check_jsonld, describe_exception, mutate, mutate_jsonld
+    from stepnc_graph.testing.fuzz import JSONLD_KINDS, KINDS, check, check_jsonld, describe_exception, mutate, mutate_jsonld
 
     index, timeout, share, kinds = job
     rng = random.Random(index)
@@ -133,7 +133,7 @@ def _save(folder: Path, index: int, kind: str, detail: str, data: bytes) -> None
 def _shrink(folder: Path, index: int, kind: str, detail: str, data: bytes, timeout: int) -> None:
     """A reduced copy of a failing input that fails the same way (run in a child process: the
     input may hang or exhaust memory)."""
-    from stepnc_graph.fuzz import failure_class
+    from stepnc_graph.testing.fuzz import failure_class
 
     wanted = failure_class(detail)
     with mp.Pool(1, _init, (2048, [])) as pool:
@@ -144,7 +144,7 @@ def _shrink(folder: Path, index: int, kind: str, detail: str, data: bytes, timeo
                 return False
             return status == "failed" and failure_class(got) == wanted
 
-        from stepnc_graph.fuzz import shrink
+        from stepnc_graph.testing.fuzz import shrink
 
         small = shrink(data, fails, budget=40)  # each try is a load: a first cut, not a minimum
     suffix = ".jsonld" if kind.startswith("jsonld") else ".stp"
@@ -152,7 +152,7 @@ def _shrink(folder: Path, index: int, kind: str, detail: str, data: bytes, timeo
 
 
 def _replay(data: bytes, kind: str, timeout: int) -> tuple[str, str]:
-    from stepnc_graph.fuzz import check, check_jsonld
+    from stepnc_graph.testing.fuzz import check, check_jsonld
 
     signal.signal(signal.SIGPROF, _alarm)
     signal.setitimer(signal.ITIMER_PROF, timeout)
@@ -164,7 +164,7 @@ def _replay(data: bytes, kind: str, timeout: int) -> tuple[str, str]:
     except MemoryError:
         return "failed", "memory: out of memory"
     except Exception as e:  # noqa: BLE001
-        from stepnc_graph.fuzz import describe_exception
+        from stepnc_graph.testing.fuzz import describe_exception
 
         return "failed", f"{describe_exception(e)}\n{traceback.format_exc(limit=-8)}"
     finally:
@@ -172,7 +172,7 @@ def _replay(data: bytes, kind: str, timeout: int) -> tuple[str, str]:
 
 
 def main() -> None:
-    from stepnc_graph.fuzz import JSONLD_KINDS, KINDS, failure_class
+    from stepnc_graph.testing.fuzz import JSONLD_KINDS, KINDS, failure_class
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-n", type=int, default=100_000, help="number of damaged inputs")

@@ -34,9 +34,9 @@ import pyoxigraph as ox
 import rdflib
 
 import stepnc_graph as sg
-from stepnc_graph.export import canonical_quads
-from stepnc_graph.generators.jsonld import context
-from stepnc_graph.naming import Naming
+from stepnc_graph.exporting.exporter import canonical_quads
+from stepnc_graph.generators.context import context
+from stepnc_graph.core.naming import Naming
 
 HERE = Path(__file__).resolve().parent
 XSD = "http://www.w3.org/2001/XMLSchema#"

@@ -41,7 +41,7 @@ def child(kind: str, path: str) -> None:
     from steputils import p21
 
     import stepnc_graph as sg
-    from stepnc_graph.loader import ntriples_chunks
+    from stepnc_graph.loading.loader import ntriples_chunks
     from stepnc_graph.part21 import read_file
     from stepnc_graph.schema.catalog import iso14649
 

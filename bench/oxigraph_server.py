@@ -10,7 +10,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from stepnc_graph.serve import ServeError, free_port, oxigraph_binary
+from stepnc_graph.server.serve import ServeError, free_port, oxigraph_binary
 
 __all__ = ["OxigraphServer", "ServerUnavailable", "free_port", "oxigraph_server_binary", "wait_until_answers"]
 

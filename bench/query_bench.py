@@ -77,10 +77,10 @@ def child_load(path: str, store_dir: str, derive: str, graph: str | None = None)
     """Load ``path`` (under ``graph``, else its own graph IRI) into a store that already holds the
     vocabulary; print seconds as JSON."""
     import stepnc_graph as sg
-    import stepnc_graph.loader as loader
-    from stepnc_graph.derive import iso14649_rules
+    import stepnc_graph.loading.loader as loader
+    from stepnc_graph.loading.derive import iso14649_rules
     from stepnc_graph.schema.catalog import iso14649
-    from stepnc_graph.vocabulary import ensure_vocabulary
+    from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary
 
     iso14649()
     iso14649_rules()  # the model and rules are built once per process, not per file
@@ -112,8 +112,8 @@ def child_rdflib(store_dir: str, graphs: str, timeout: float, names: list[str]) 
     import rdflib
     import pyoxigraph as ox
 
-    from stepnc_graph.naming import derived_graph_iri
-    from stepnc_graph.query import PREFIXES, resolve
+    from stepnc_graph.core.naming import derived_graph_iri
+    from stepnc_graph.querying.query import PREFIXES, resolve
     from stepnc_graph.store import GraphStore
 
     started = time.perf_counter()
@@ -179,7 +179,7 @@ def measure_loads(path: Path, work: Path, repeat: int) -> dict[str, list[dict[st
 
 
 def specs() -> list[str]:
-    from stepnc_graph.query import library
+    from stepnc_graph.querying.query import library
 
     names = [q.name for q in library()]
     return names + [f"{n}?{'&'.join(f'{k}={v}' for k, v in p.items())}" for n, p in VARIANTS]
@@ -189,7 +189,7 @@ def child_queries(store_dir: str, directory: str, spec: str, repeat: int) -> Non
     """Run one query of the library in ``directory`` (warm-up, then ``repeat`` timed runs, once if
     the warm-up is over SLOW seconds), each run the query and its SPARQL JSON; print one JSON line
     per run: wall and CPU seconds, rows and the SHA-256 of the JSON (the warm-up's)."""
-    from stepnc_graph.query import execute, resolve
+    from stepnc_graph.querying.query import execute, resolve
     from stepnc_graph.store import GraphStore
 
     name, _, params = spec.partition("?")
@@ -282,7 +282,7 @@ def measure_queries(title: str, store_dir: Path, repeat: int, timeout: float, ba
     """Time every library query on the store (alternating with the baseline library's, if any),
     printing each as it is done; return the current library's figures. ``target``: the median
     wall seconds a query must not exceed (None: report only)."""
-    from stepnc_graph.resources import queries_dir
+    from stepnc_graph.core.resources import queries_dir
 
     print(f"\nqueries on {title}, on-disk Oxigraph (" +
           (f"target <= {target * 1000:.0f} ms median" if target else "no target: figures only") + ")")
@@ -389,7 +389,7 @@ def main() -> None:
         ap.error("--copies must be at least 1")
     if args.baseline is not None and not any(args.baseline.glob("*.rq")):
         ap.error(f"--baseline {args.baseline}: no .rq files there")
-    from stepnc_graph.naming import default_graph_iri
+    from stepnc_graph.core.naming import default_graph_iri
 
     args.data.mkdir(parents=True, exist_ok=True)
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}")

@@ -41,7 +41,7 @@ GRAPH = "https://w3id.org/stepnc-graph/data/shaft_two_setups.stp"
 FLOOR = "import pyoxigraph, click"
 
 _CLI = "import stepnc_graph.cli"
-_PLANS = "from stepnc_graph.mapping.plan import iso14649_plans; iso14649_plans()"
+_PLANS = "from stepnc_graph.mapping.plans import iso14649_plans; iso14649_plans()"
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,7 @@ class Command:
 COMMANDS = (
     Command("--help", ("--help",), _CLI, 0.1),
     Command("load --memory", ("load", "--memory", str(EXAMPLE)),
-            f"{_CLI}; import stepnc_graph.api, stepnc_graph.loader; {_PLANS}", 0.2),
+            f"{_CLI}; import stepnc_graph.api, stepnc_graph.loading.loader; {_PLANS}", 0.2),
     Command("info", ("info",), f"{_CLI}; import stepnc_graph.api"),
     Command("export ttl", ("export", "--format", "ttl", "--graph", GRAPH),
             f"{_CLI}; import stepnc_graph.api; from stepnc_graph.schema.catalog import iso14649; iso14649()"),
@@ -66,14 +66,14 @@ COMMANDS = (
     Command("schema entity", ("schema", "entity", "turning_workingstep"),
             f"{_CLI}; from stepnc_graph.schema.catalog import iso14649; iso14649()"),
     Command("query FILE", ("query", "tool-changes", str(EXAMPLE)),
-            f"{_CLI}; import stepnc_graph.api, stepnc_graph.loader, stepnc_graph.query; {_PLANS}", 0.2),
+            f"{_CLI}; import stepnc_graph.api, stepnc_graph.loading.loader, stepnc_graph.querying.query; {_PLANS}", 0.2),
     Command("validate FILE", ("validate", str(EXAMPLE)),
-            f"{_CLI}; import stepnc_graph.api, stepnc_graph.loader, stepnc_graph.validate; {_PLANS}; "
-            "from stepnc_graph.validate import compile_shapes, shape_files; compile_shapes(shape_files())", 0.2),
-    Command("query store", ("query", "tool-changes"), f"{_CLI}; import stepnc_graph.api, stepnc_graph.query"),
+            f"{_CLI}; import stepnc_graph.api, stepnc_graph.loading.loader, stepnc_graph.validation; {_PLANS}; "
+            "from stepnc_graph.validation import compile_shapes, shape_files; compile_shapes(shape_files())", 0.2),
+    Command("query store", ("query", "tool-changes"), f"{_CLI}; import stepnc_graph.api, stepnc_graph.querying.query"),
     Command("validate store", ("validate", "--store", "STORE"),
-            f"{_CLI}; import stepnc_graph.api, stepnc_graph.validate; "
-            "from stepnc_graph.validate import compile_shapes, shape_files; compile_shapes(shape_files())"),
+            f"{_CLI}; import stepnc_graph.api, stepnc_graph.validation; "
+            "from stepnc_graph.validation import compile_shapes, shape_files; compile_shapes(shape_files())"),
 )
 
 

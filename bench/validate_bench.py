@@ -59,7 +59,7 @@ print(json.dumps({"wall": t2 - t1, "cpu": c2 - c1, "setup": t1 - t0, "engine_wal
 _OURS = r"""
 import json, resource, sys, time
 t0 = time.perf_counter(); c0 = time.process_time()
-from stepnc_graph.validate import validate
+from stepnc_graph.validation import validate
 report = validate([sys.argv[1]], lenient=True)  # what `stepnc-graph validate FILE` does
 t2 = time.perf_counter(); c2 = time.process_time()
 keys = sorted({(x.focus, x.component, x.shape or "") for x in report.results})
@@ -72,7 +72,7 @@ _LOAD = r"""
 import json, sys, time
 t0 = time.perf_counter(); c0 = time.process_time()
 from stepnc_graph import api
-from stepnc_graph.validate import throwaway_store
+from stepnc_graph.validation import throwaway_store
 with throwaway_store([sys.argv[1]]) as store:  # validate()'s load of a file: in memory, or on disk if large
     api.load(store, [sys.argv[1]], lenient=True, derived=False, positions=False)
     print(json.dumps({"load_s": time.perf_counter() - t0, "load_cpu": time.process_time() - c0}))
@@ -82,7 +82,7 @@ _EXPORT = r"""
 import sys
 import pyoxigraph as ox
 from stepnc_graph import api
-from stepnc_graph.validate import shape_files
+from stepnc_graph.validation import shape_files
 with api.open_store(memory=True) as store:
     [r] = api.load(store, [sys.argv[1]], lenient=True, derived=False)  # the graph validate() checks
     data = store.dump(ox.RdfFormat.N_TRIPLES, r.graph)

@@ -10,9 +10,9 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from stepnc_graph.build import build, generate
+from stepnc_graph.artefacts.build import build, generate
 from stepnc_graph.cli import main
-from stepnc_graph.stats import ontology_stats
+from stepnc_graph.artefacts.stats import ontology_stats
 
 from conftest import FIXTURES, ROOT
 
@@ -24,7 +24,7 @@ def test_committed_generated_files_equal_a_fresh_build() -> None:
 
 
 def _digest_in_subprocess(seed: str) -> str:
-    code = ("import hashlib; from stepnc_graph.build import generate; g = generate(); "
+    code = ("import hashlib; from stepnc_graph.artefacts.build import generate; g = generate(); "
             "print(hashlib.sha256(''.join(k + g[k] for k in sorted(g)).encode()).hexdigest())")
     env = {**os.environ, "PYTHONHASHSEED": seed}
     return subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True,

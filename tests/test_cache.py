@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from stepnc_graph.build import build
-from stepnc_graph.mapping.plan import Plans
+from stepnc_graph.artefacts.build import build
+from stepnc_graph.mapping.plans import Plans
 from stepnc_graph.schema import cache
 from stepnc_graph.schema.catalog import Catalog, load_catalog_model
 from stepnc_graph.schema.model import WhereRule

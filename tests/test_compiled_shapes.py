@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from stepnc_graph.build import build
-from stepnc_graph.validate import CompiledShapesWarning, compile_shapes, shape_files, validate
-from stepnc_graph.validate.compiled import CACHE_FILE, SUPPORT_FILE, StaleChecks, compile_texts, digest, hierarchy_of, loads
-from stepnc_graph.validate.shapes import ShapesGraph
+from stepnc_graph.artefacts.build import build
+from stepnc_graph.validation import CompiledShapesWarning, compile_shapes, shape_files, validate
+from stepnc_graph.validation.compiled import CACHE_FILE, SUPPORT_FILE, StaleChecks, compile_texts, digest, hierarchy_of, loads
+from stepnc_graph.validation.shapes import ShapesGraph
 
 from conftest import ROOT
 

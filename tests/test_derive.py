@@ -9,8 +9,8 @@ import pyoxigraph as ox
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.derive import compile_rules, iso14649_rules
-from stepnc_graph.naming import (
+from stepnc_graph.loading.derive import compile_rules, iso14649_rules
+from stepnc_graph.core.naming import (
     ANALYSIS_NS,
     ATTRIBUTE_NS,
     STEPNC_NS,
@@ -19,7 +19,7 @@ from stepnc_graph.naming import (
     execution_step_iri,
 )
 from stepnc_graph.store import GraphStore
-from stepnc_graph.vocabulary import (
+from stepnc_graph.graphs.vocabulary_graph import (
     DIGEST,
     stored_digest,
     vocabulary_digest,
@@ -165,7 +165,7 @@ COMPLEX = ("ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('c'
 def _layer_by_construct(store: GraphStore, graph: str) -> set[ox.Quad]:
     """The layer as a CONSTRUCT over the stored graph finds it (the JSON-LD load's way), computed
     in a copy of the file's graph: same blank nodes, so the two layers compare quad by quad."""
-    from stepnc_graph.derive import derive
+    from stepnc_graph.loading.derive import derive
 
     copy = sg.open_store(memory=True)
     copy.oxigraph.extend(store.quads(graph))
@@ -188,8 +188,8 @@ def test_the_mappers_blank_node_lines_are_what_derive_writes_as_quads(program: P
     blank nodes), which the mapper writes as Shadow chunks for a replacement to compare, are the
     quads derive() writes: the program's text read with its blank node labels kept, derive's
     queries over it give the same triples."""
-    from stepnc_graph.derive import Lists, _Reader
-    from stepnc_graph.loader import _Load
+    from stepnc_graph.loading.derive import Lists, _Reader
+    from stepnc_graph.loading.loader import _Load
     from stepnc_graph.store import Shadow
 
     job = _Load.of_file(program, True, None, None)
@@ -263,7 +263,7 @@ def test_a_failing_derivation_rolls_the_whole_load_back(tmp_path: Path, monkeypa
     store = sg.open_store(None if memory else tmp_path / "store", memory=memory)
     sg.load(store, [EXAMPLE])
     before = sorted(str(q) for q in store.quads())
-    loader = sys.modules["stepnc_graph.loader"]
+    loader = sys.modules["stepnc_graph.loading.loader"]
     real = loader.derive
 
     def failing(*args, **kwargs):  # type: ignore[no-untyped-def]
@@ -357,7 +357,7 @@ def test_a_layer_written_in_pieces_is_the_layer_written_whole(tmp_path: Path, mo
     import rdflib
     from rdflib.compare import isomorphic
 
-    from stepnc_graph import derive as derive_module
+    from stepnc_graph.loading import derive as derive_module
     from stepnc_graph import store as store_module
 
     RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.naming import (
+from stepnc_graph.core.naming import (
     P21_NS,
     STAGING,
     VOCABULARY_GRAPH,
@@ -23,7 +23,7 @@ from stepnc_graph.naming import (
     derived_graph_iri,
     link_graph_iri,
 )
-from stepnc_graph.remote import open_remote
+from stepnc_graph.store.remote import open_remote
 from stepnc_graph.store import GraphStore, Store
 
 from conftest import ROOT

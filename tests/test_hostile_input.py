@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.naming import P21_NS
+from stepnc_graph.core.naming import P21_NS
 from stepnc_graph.part21 import Part21SyntaxError, read_file, read_text
 
 from conftest import ROOT
@@ -320,7 +320,7 @@ def test_damaged_programs_keep_every_promise(chunk: int, time_bound: None) -> No
     """No exception but the documented ones, the invariant, a strictly parseable export."""
     import random
 
-    from stepnc_graph.fuzz import check, mutate
+    from stepnc_graph.testing.fuzz import check, mutate
 
     programs = [EXAMPLE.read_bytes(), *(p.read_bytes() for p in sorted((ROOT / "tests" / "fixtures" / "p21").glob(
         "*.stp")))]
@@ -337,7 +337,7 @@ def test_relaid_programs_and_huge_numbers_keep_every_promise(kind: str, time_bou
     broken; integers, reals, #ids and references made huge (a sample of the fuzz run's)."""
     import random
 
-    from stepnc_graph.fuzz import check, mutate
+    from stepnc_graph.testing.fuzz import check, mutate
 
     programs = [EXAMPLE.read_bytes(), *(p.read_bytes() for p in sorted((ROOT / "tests" / "fixtures" / "p21").glob(
         "*.stp")))]
@@ -352,7 +352,7 @@ def test_the_fuzz_check_finds_text_neither_loaded_nor_kept() -> None:
     """The check measures what is kept by itself: a reader that dropped a span is caught."""
     from types import SimpleNamespace
 
-    from stepnc_graph.fuzz import _unkept_text
+    from stepnc_graph.testing.fuzz import _unkept_text
 
     text = HEADER + "#1=A(1);\n/* c */ #2=B(2); ENDSEC;END-ISO-10303-21;\n"
     reader = read_text(text, "t.stp", lenient=True)
@@ -368,7 +368,7 @@ def test_the_fuzz_check_finds_an_outbound_connection(monkeypatch: pytest.MonkeyP
     import socket
     import urllib.request
 
-    from stepnc_graph import fuzz
+    from stepnc_graph.testing import fuzz
 
     listener = fuzz.LoopbackListener()
     fuzz.watch_network()
@@ -414,7 +414,7 @@ def test_jsonld_damages_of_every_kind_are_made() -> None:
     import random
     from collections import Counter
 
-    from stepnc_graph.fuzz import JSONLD_KINDS, mutate_jsonld
+    from stepnc_graph.testing.fuzz import JSONLD_KINDS, mutate_jsonld
 
     store = sg.open_store(memory=True)
     [r] = sg.load(store, [ROOT / "tests" / "fixtures" / "p21" / "pass_edition3.stp"])

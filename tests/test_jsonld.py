@@ -24,10 +24,10 @@ from click.testing import CliRunner
 
 import stepnc_graph as sg
 from stepnc_graph.cli import main
-from stepnc_graph.jsonld import shipped_context
-from stepnc_graph.jsonld_load import MAX_DEPTH, JsonLdError, local_contexts, parse_quads
-from stepnc_graph.naming import CONTEXT_IRI, P21_NS, STEPNC_NS
-from stepnc_graph.sources import SourceError
+from stepnc_graph.exporting.jsonld import shipped_context
+from stepnc_graph.loading.jsonld import MAX_DEPTH, JsonLdError, local_contexts, parse_quads
+from stepnc_graph.core.naming import CONTEXT_IRI, P21_NS, STEPNC_NS
+from stepnc_graph.loading.sources import SourceError
 from stepnc_graph.store import GraphStore
 
 from conftest import FIXTURES, ROOT

@@ -13,9 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import stepnc_graph as sg
-from stepnc_graph import kept as kept_module
-from stepnc_graph.kept import KeptTexts, read_without_blank_nodes
-from stepnc_graph.naming import derived_graph_iri
+from stepnc_graph.store import kept as kept_module
+from stepnc_graph.store.kept import KeptTexts, read_without_blank_nodes
+from stepnc_graph.core.naming import derived_graph_iri
 from stepnc_graph.store import GraphStore, _has_blank
 
 from test_store import EXAMPLE, G, assert_as_a_fresh_load, copies

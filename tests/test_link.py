@@ -13,9 +13,9 @@ from click.testing import CliRunner
 
 import stepnc_graph as sg
 from stepnc_graph.cli import main
-from stepnc_graph.link import LinkError, program_link_graphs
-from stepnc_graph.naming import P21_NS, link_graph_iri
-from stepnc_graph.sources import SourceError
+from stepnc_graph.loading.link import LinkError, program_link_graphs
+from stepnc_graph.core.naming import P21_NS, link_graph_iri
+from stepnc_graph.loading.sources import SourceError
 from stepnc_graph.store import GraphStore
 
 from conftest import ROOT

@@ -17,11 +17,11 @@ from hypothesis import strategies as st
 
 import stepnc_graph as sg
 from stepnc_graph.cli import main
-from stepnc_graph.naming import P21_NS, STEPNC_NS
+from stepnc_graph.core.naming import P21_NS, STEPNC_NS
 from stepnc_graph.part21 import Part21SyntaxError, read_file
 from stepnc_graph.part21.diagnostics import CODES
 from stepnc_graph.store import GraphStore
-from stepnc_graph.synth import random_program
+from stepnc_graph.testing.synth import random_program
 
 from conftest import FIXTURES, ROOT
 
@@ -451,7 +451,7 @@ def test_failure_mid_load_leaves_store_unchanged(tmp_path: Path, monkeypatch: py
         return original(self, inst, out)
 
     monkeypatch.setattr(mapper.InstanceMapper, "map", failing)
-    monkeypatch.setattr(sys.modules["stepnc_graph.loader"], "CHUNK_LINES", 10)  # some data reaches the store
+    monkeypatch.setattr(sys.modules["stepnc_graph.loading.loader"], "CHUNK_LINES", 10)  # some data reaches the store
     with pytest.raises(RuntimeError, match="injected"):
         sg.load(store, [EXAMPLE])
     assert _snapshot(store) == before
@@ -478,10 +478,10 @@ def test_killed_load_is_rolled_back_on_next_open(tmp_path: Path) -> None:
     before = _snapshot(store)
     store.close()
     script = f"""
-import os, stepnc_graph as sg, stepnc_graph.loader
+import os, stepnc_graph as sg, stepnc_graph.loading.loader
 from stepnc_graph.mapping import mapper
 import sys
-sys.modules['stepnc_graph.loader'].CHUNK_LINES = 10
+sys.modules['stepnc_graph.loading.loader'].CHUNK_LINES = 10
 original = mapper.InstanceMapper.map
 count = [0]
 def dying(self, inst, out):
@@ -522,7 +522,7 @@ def test_exports_parse_back(fmt: str, parser: str) -> None:
 def test_export_needs_a_graph_when_several(tmp_path: Path) -> None:
     store = sg.open_store(memory=True)
     sg.load(store, [EXAMPLE, program(tmp_path, "#1=PROPERTY_PARAMETER('a');")])
-    from stepnc_graph.export import ExportError
+    from stepnc_graph.exporting.exporter import ExportError
 
     with pytest.raises(ExportError, match="choose one"):
         sg.export(store, "ttl")
@@ -553,7 +553,7 @@ def test_random_schema_valid_programs_load_cleanly_and_round_trip(seed: int) -> 
 
 def _norm_instance(inst: object) -> tuple[str, list[object]]:
     """An instance's name and parameters; numbers as floats, SET members in sorted order."""
-    from stepnc_graph.mapping.plan import iso14649_plans
+    from stepnc_graph.mapping.plans import iso14649_plans
 
     plan = iso14649_plans().entities[inst.name]  # type: ignore[attr-defined]
     params = [_norm(v) for v in inst.params]  # type: ignore[attr-defined]

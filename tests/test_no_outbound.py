@@ -20,8 +20,8 @@ import pytest
 import requests
 
 import stepnc_graph as sg
-from stepnc_graph.query import QueryError
-from stepnc_graph.validate import ShapesError
+from stepnc_graph.querying.query import QueryError
+from stepnc_graph.validation import ShapesError
 
 from conftest import ROOT
 
@@ -104,7 +104,7 @@ def harmless(url: str) -> list[str]:
 
 
 def test_the_check_reads_the_parse_tree_not_the_letters() -> None:
-    from stepnc_graph.outbound import OutboundRefused, outbound_keyword, refuse_outbound
+    from stepnc_graph.core.outbound import OutboundRefused, outbound_keyword, refuse_outbound
 
     url = "http://127.0.0.1:9/sparql"
     for text in evasions(url):

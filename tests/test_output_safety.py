@@ -33,8 +33,8 @@ import pyoxigraph as ox
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.errors import excerpt
-from stepnc_graph.validate.report import Result, ValidationReport
+from stepnc_graph.core.errors import excerpt
+from stepnc_graph.validation.report import Result, ValidationReport
 
 from conftest import ROOT
 from test_load import HEADER
@@ -387,7 +387,7 @@ def test_normal_csv_is_unchanged() -> None:
 
 
 def test_the_formula_guard_does_not_depend_on_oxigraphs_json_layout() -> None:
-    from stepnc_graph.query import _guard_formulas
+    from stepnc_graph.querying.query import _guard_formulas
 
     compact = ('{"head":{"vars":["v"]},"results":{"bindings":[{"v":{"type":"literal","value":"=1"}},'
                '{"v":{"type":"literal","value":"-2","datatype":"http://www.w3.org/2001/XMLSchema#integer"}},'

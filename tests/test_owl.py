@@ -10,10 +10,10 @@ from rdflib.compare import graph_diff, isomorphic, to_isomorphic
 
 from stepnc_graph.express import parse_file
 from stepnc_graph.generators.owl import OwlGenerator, holds_list
-from stepnc_graph.naming import P21, STEPNC
+from stepnc_graph.core.naming import P21, STEPNC
 from stepnc_graph.schema import build_model
 from stepnc_graph.schema.catalog import Catalog
-from stepnc_graph.typemap import value_shape
+from stepnc_graph.vocabulary.typemap import value_shape
 
 from conftest import FIXTURES, ROOT
 
@@ -132,8 +132,8 @@ def test_iso_clause_annotations(shipped: Graph) -> None:
 
 
 def test_python_vocabulary_rejects_typos() -> None:
-    from stepnc_graph.vocab import P21 as P21_TERMS
-    from stepnc_graph.vocab import STEPNC as TERMS
+    from stepnc_graph.vocabulary.terms import P21 as P21_TERMS
+    from stepnc_graph.vocabulary.terms import STEPNC as TERMS
 
     assert TERMS.turning_workingstep == URIRef(str(STEPNC) + "turning_workingstep")
     assert TERMS["machining_operation.its_id"] == STEPNC["machining_operation.its_id"]
@@ -163,7 +163,7 @@ def test_no_iri_is_two_kinds_of_property(shipped: Graph) -> None:
 
 def test_generic_property_of_mixed_values_is_an_annotation(shipped: Graph) -> None:
     """attr:diameter holds a length in milling_tool_dimension and a toleranced length in round_hole."""
-    from stepnc_graph.naming import generic_attribute, generic_attribute_of_kind
+    from stepnc_graph.core.naming import generic_attribute, generic_attribute_of_kind
 
     diameter = generic_attribute("diameter")
     assert (diameter, RDF.type, OWL.AnnotationProperty) in shipped

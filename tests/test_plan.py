@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 import stepnc_graph as sg
 from stepnc_graph.cli import main
-from stepnc_graph.plan import Plan, PlanError, build_plan
+from stepnc_graph.workplan.plan import Plan, PlanError, build_plan
 from stepnc_graph.store import GraphStore
 
 from conftest import FIXTURES, ROOT

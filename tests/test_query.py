@@ -20,11 +20,11 @@ import pyoxigraph as ox
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.derive import iso14649_rules
-from stepnc_graph.naming import DATA_BASE, STEPNC_NS, VOCABULARY_GRAPH
+from stepnc_graph.loading.derive import iso14649_rules
+from stepnc_graph.core.naming import DATA_BASE, STEPNC_NS, VOCABULARY_GRAPH
 from stepnc_graph.part21 import read_file
-from stepnc_graph.query import QueryError, library, parse_header, resolve
-from stepnc_graph.resources import queries_dir
+from stepnc_graph.querying.query import QueryError, library, parse_header, resolve
+from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.store import GraphStore
 
 from conftest import FIXTURES, ROOT
@@ -100,8 +100,8 @@ def test_rows_naming_a_thing_give_its_id_and_ref(name: str, store: GraphStore) -
 def test_queries_judged_vocabulary_free_give_the_same_rows_without_it(name: str, store: GraphStore) -> None:
     """A throw-away store gets the vocabulary graph only for queries that may read it
     (Query.needs_vocabulary): for every other library query the rows must not depend on it."""
-    from stepnc_graph.query import execute
-    from stepnc_graph.vocabulary import ensure_vocabulary, is_throwaway
+    from stepnc_graph.querying.query import execute
+    from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary, is_throwaway
 
     query = resolve(name)
     assert query.library and is_throwaway(store)

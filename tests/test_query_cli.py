@@ -10,7 +10,7 @@ from pathlib import Path
 from click.testing import CliRunner
 
 from stepnc_graph.cli import main
-from stepnc_graph.naming import DATA_BASE
+from stepnc_graph.core.naming import DATA_BASE
 
 from conftest import FIXTURES, ROOT
 

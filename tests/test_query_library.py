@@ -24,7 +24,7 @@ from rdflib.plugins.sparql import prepareQuery
 from rdflib.plugins.sparql.parserutils import CompValue
 from rdflib.term import Variable
 
-from stepnc_graph.query import library
+from stepnc_graph.querying.query import library
 
 PREFIXES = """PREFIX stepnc: <https://w3id.org/stepnc-graph/iso14649#>
 PREFIX attr: <https://w3id.org/stepnc-graph/attribute#>

@@ -27,7 +27,7 @@ from typing import Any
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.remote import Endpoint, RemoteStore, StoreError, open_remote
+from stepnc_graph.store.remote import Endpoint, RemoteStore, StoreError, open_remote
 
 from conftest import FIXTURES, ROOT
 from oxigraph_server import OxigraphServer, ServerUnavailable, free_port

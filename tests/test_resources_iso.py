@@ -91,7 +91,7 @@ def test_brep_items_load_and_validate_clean() -> None:
     """vertex_point, edge_curve (topological and geometric items at once) and poly_loop (name,
     polygon) as ISO writes them: before, three ONEOF violations and an argument-count error."""
     import stepnc_graph as sg
-    from stepnc_graph.validate import validate
+    from stepnc_graph.validation import validate
 
     from conftest import FIXTURES
 

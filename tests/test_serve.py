@@ -34,7 +34,7 @@ class Serving:
 
     def __init__(self, store: Path, *options: str, address: str = "127.0.0.1") -> None:
         try:
-            from stepnc_graph.serve import oxigraph_binary
+            from stepnc_graph.server.serve import oxigraph_binary
 
             oxigraph_binary()
         except Exception as e:  # noqa: BLE001 -- the reason is the skip message

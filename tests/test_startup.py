@@ -74,11 +74,11 @@ def test_schema_entity_reads_the_compiled_model() -> None:
 
 
 def test_jsonld_export_imports_no_rdf_library(tmp_path: Path) -> None:
-    # the JSON-LD export is written from the store's quads with the shipped context (stepnc_graph.jsonld)
+    # the JSON-LD export is written from the store's quads with the shipped context (stepnc_graph.exporting.jsonld)
     store = str(tmp_path / "store")
     assert imported_by(["load", "--store", store, str(EXAMPLE)])[0] == 0
     code, modules = imported_by(["export", "--format", "jsonld", "--store", store])
-    assert code == 0 and "stepnc_graph.jsonld" in modules
+    assert code == 0 and "stepnc_graph.exporting.jsonld" in modules
     assert heavy(modules) == []
 
 

@@ -21,8 +21,8 @@ import pytest
 
 import stepnc_graph as sg
 from stepnc_graph import store as store_module
-from stepnc_graph.handoff import Handoff
-from stepnc_graph.naming import VOCABULARY_GRAPH
+from stepnc_graph.store.handoff import Handoff
+from stepnc_graph.core.naming import VOCABULARY_GRAPH
 from stepnc_graph.store import GraphStore, StoreBusy, StoreError
 
 from conftest import ROOT
@@ -272,7 +272,7 @@ def test_a_failed_compact_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch
 def test_compact_needs_a_store_directory() -> None:
     """A SPARQL endpoint manages its own storage (nothing is sent to it); an in-memory store has no
     disk space to give back."""
-    from stepnc_graph.remote import Endpoint, RemoteStore
+    from stepnc_graph.store.remote import Endpoint, RemoteStore
 
     with pytest.raises(StoreError, match="store directory"):
         sg.compact(RemoteStore(Endpoint.from_options("http://127.0.0.1:9")))
@@ -490,7 +490,7 @@ def test_a_replacement_beside_other_programs_writes_only_what_changed(tmp_path: 
         assert s.last_removal == "difference" and not r.diagnostics
         staged_as(staging, s)
         assert s.last_difference["new version dumped"] == 0  # compared as the load wrote it
-        assert s.last_difference["old version kept"] == 2  # the old one too (stepnc_graph.kept)
+        assert s.last_difference["old version kept"] == 2  # the old one too (stepnc_graph.store.kept)
         assert_as_a_fresh_load(s, G, new)
         assert not loads_own_labels(s)
         assert all(graph_of(s, g) == theirs[g] for g in others)
@@ -578,7 +578,7 @@ def test_a_write_the_load_text_does_not_show_makes_the_replacement_dump_the_stag
     """The new version is compared as the load wrote it only when its text holds each staged
     graph whole: a quad written otherwise (here by SPARQL Update inside the load) makes the
     count differ, and the staged store is dumped instead -- the quad is not lost."""
-    from stepnc_graph.loader import ntriples_chunks
+    from stepnc_graph.loading.loader import ntriples_chunks
 
     extra = "<urn:x> <urn:p> \"written by an update\" ."
     with sg.open_store(tmp_path / "s") as s:
@@ -642,7 +642,7 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
 
 def test_a_replacement_rewrites_a_stale_vocabulary(tmp_path: Path) -> None:
     """The vocabulary graph is compared only when the load rewrote it (it was stale)."""
-    from stepnc_graph.vocabulary import DIGEST
+    from stepnc_graph.graphs.vocabulary_graph import DIGEST
 
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
@@ -870,7 +870,7 @@ def test_keeping_a_text_on_a_full_disk_fails_without_waiting(tmp_path: Path, mon
     is not kept, and nothing waits for an end of input the compressor already took."""
     import zlib
 
-    from stepnc_graph.kept import KeptTexts
+    from stepnc_graph.store.kept import KeptTexts
 
     real = zlib.compressobj
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import pyoxigraph as ox
 from hypothesis import given, strategies as st
 
-from stepnc_graph.mapping import terms as T
+from stepnc_graph.mapping import ntriples as T
 
 
 def _written_back(obj: str) -> str:

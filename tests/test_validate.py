@@ -12,7 +12,7 @@ from rdflib import RDF, SH, BNode, Graph, URIRef
 from rdflib.collection import Collection
 
 from stepnc_graph import api
-from stepnc_graph.validate import shape_files, validate
+from stepnc_graph.validation import shape_files, validate
 
 ROOT = Path(__file__).resolve().parent.parent
 FIX = Path(__file__).parent / "fixtures"
@@ -173,11 +173,11 @@ def test_oneof_on_a_complex_instance(tmp_path: Path) -> None:
     assert any(key[0].endswith("/i400") and "oneof" in (key[4] or "") for key in mine)
 
 
-# -- checks the Part 21 mapping implies (stepnc_graph.validate.implied) -----------------------------
+# -- checks the Part 21 mapping implies (stepnc_graph.validation.implied) -----------------------------
 
 
 def _implied_checks() -> list[Any]:
-    from stepnc_graph.validate import compile_shapes
+    from stepnc_graph.validation import compile_shapes
 
     return [c for c in compile_shapes(shape_files()).checks if c.implied is not None]
 
@@ -186,8 +186,8 @@ def _implied_checks() -> list[Any]:
 def test_checks_the_mapping_implies_find_nothing_on_what_it_wrote(program: Path) -> None:
     """The cross-check: every check a file's validation skips, run anyway on every fixture (damaged
     ones included) finds nothing; and the file's report equals the store's, which skips nothing."""
-    from stepnc_graph.validate import _implied_skips
-    from stepnc_graph.validate.engine import run
+    from stepnc_graph.validation import _implied_skips
+    from stepnc_graph.validation.engine import run
 
     with api.open_store(memory=True) as store:
         [loaded] = api.load(store, [program], lenient=True)
@@ -278,7 +278,7 @@ def test_large_input_is_validated_in_a_temporary_store_on_disk(tmp_path: Path, m
     import importlib
     import tempfile
 
-    module = importlib.import_module("stepnc_graph.validate")
+    module = importlib.import_module("stepnc_graph.validation")
     program = VFIX / "fail_plan.stp"
     in_memory = validate([program])
     monkeypatch.setattr(module, "MEMORY_VALIDATION_BYTES", 0)
@@ -345,9 +345,9 @@ def test_a_check_that_reads_positions_keeps_them(tmp_path: Path) -> None:
 def test_checks_on_threads_give_their_rows_in_check_order(monkeypatch: pytest.MonkeyPatch) -> None:
     import importlib
 
-    from stepnc_graph.validate import compile_shapes
+    from stepnc_graph.validation import compile_shapes
 
-    engine = importlib.import_module("stepnc_graph.validate.engine")
+    engine = importlib.import_module("stepnc_graph.validation.engine")
     checks = list(compile_shapes(shape_files()).checks)
     with api.open_store(memory=True) as store:
         [loaded] = api.load(store, [FIX / "p21" / "fail_seed_annex_d.stp"], lenient=True)
@@ -364,8 +364,8 @@ def test_oneof_checks_are_skipped_where_no_node_can_fail_them() -> None:
     both sides: on the example, none of the ONEOF checks runs (they are a tenth of the checks)."""
     import pyoxigraph as ox  # noqa: F401
 
-    from stepnc_graph.validate import compile_shapes
-    from stepnc_graph.validate.engine import run
+    from stepnc_graph.validation import compile_shapes
+    from stepnc_graph.validation.engine import run
 
     shipped = compile_shapes(shape_files())
     oneof = [c for c in shipped.checks if c.constraint == "not" and "oneof" in c.shape]
@@ -379,6 +379,6 @@ def test_oneof_checks_are_skipped_where_no_node_can_fail_them() -> None:
 def test_the_shipped_checks_leave_the_position_triples_out() -> None:
     """No shipped check reads p21:id/p21:line or any predicate: validate FILE loads without them (a
     sixth fewer triples). A SELECT's projection of three variables is no triple pattern."""
-    from stepnc_graph.validate import _reads_positions, compile_shapes
+    from stepnc_graph.validation import _reads_positions, compile_shapes
 
     assert not _reads_positions(compile_shapes(shape_files()).checks)

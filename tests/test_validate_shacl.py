@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from rdflib import SH, Graph, Literal, URIRef
 
-from stepnc_graph.validate import DataError, ShapesError, UnsupportedShapes, validate
+from stepnc_graph.validation import DataError, ShapesError, UnsupportedShapes, validate
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"

@@ -199,8 +199,8 @@ class Outcome:
 def run_case(case: Case) -> Outcome:
     """Validate the case's data against its shapes with stepnc-graph's engine and compare."""
     from stepnc_graph import api
-    from stepnc_graph.validate import IllFormedShapes, UnsupportedShapes, compile_shapes, validate
-    from stepnc_graph.validate.rdfdata import load_rdf
+    from stepnc_graph.validation import IllFormedShapes, UnsupportedShapes, compile_shapes, validate
+    from stepnc_graph.validation.rdfdata import load_rdf
 
     if case.name in PENDING:
         return Outcome("pending", PENDING[case.name])

@@ -25,26 +25,24 @@ PACKAGE = ROOT / "src" / "stepnc_graph"
 
 #: The layers, lowest first: (name, module prefixes). A prefix names a module and its submodules.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("core", ("stepnc_graph.errors", "stepnc_graph.resources", "stepnc_graph.naming", "stepnc_graph.handoff",
-              "stepnc_graph.outbound", "stepnc_graph.bindings")),
+    ("core", ("stepnc_graph.core",)),
     ("readers", ("stepnc_graph.express", "stepnc_graph.part21")),
     ("schema", ("stepnc_graph.schema",)),
-    ("vocabulary", ("stepnc_graph.typemap", "stepnc_graph.vocab", "stepnc_graph.p21vocab")),
+    ("vocabulary", ("stepnc_graph.vocabulary",)),
     ("mapping", ("stepnc_graph.mapping",)),
     ("generators", ("stepnc_graph.generators",)),
-    ("store", ("stepnc_graph.store", "stepnc_graph.kept", "stepnc_graph.remote")),
-    ("graphs", ("stepnc_graph.vocabulary",)),
-    ("loading", ("stepnc_graph.sources", "stepnc_graph.loader", "stepnc_graph.jsonld_load", "stepnc_graph.derive",
-                 "stepnc_graph.link")),
-    ("exporting", ("stepnc_graph.export", "stepnc_graph.jsonld")),
-    ("querying", ("stepnc_graph.query",)),
-    ("validation", ("stepnc_graph.validate",)),
-    ("workplan", ("stepnc_graph.plan",)),
-    ("serving", ("stepnc_graph.serve",)),
-    ("artefacts", ("stepnc_graph.build", "stepnc_graph.stats")),
+    ("store", ("stepnc_graph.store",)),
+    ("graphs", ("stepnc_graph.graphs",)),
+    ("loading", ("stepnc_graph.loading",)),
+    ("exporting", ("stepnc_graph.exporting",)),
+    ("querying", ("stepnc_graph.querying",)),
+    ("validation", ("stepnc_graph.validation",)),
+    ("workplan", ("stepnc_graph.workplan",)),
+    ("server", ("stepnc_graph.server",)),
+    ("artefacts", ("stepnc_graph.artefacts",)),
     ("api", ("stepnc_graph.api", "stepnc_graph")),
     ("cli", ("stepnc_graph.cli",)),
-    ("testing", ("stepnc_graph.fuzz", "stepnc_graph.synth")),
+    ("testing", ("stepnc_graph.testing",)),
 )
 
 #: Modules the size limits do not apply to: generated, or a patched copy of a library's parser.

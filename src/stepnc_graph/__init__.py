@@ -44,7 +44,7 @@ __all__ = ["Compacted", "GraphInfo", "LinkResult", "LoadResult", "QueryResult", 
 
 
 class _Package(types.ModuleType):
-    """This package's module type: the submodule ``stepnc_graph.export`` never hides ``export()``.
+    """This package's module type: the submodule ``stepnc_graph.exporting.exporter`` never hides ``export()``.
 
     Importing a submodule binds it on its package under its name. When the API
     was imported here eagerly, ``export`` was re-bound to the function right

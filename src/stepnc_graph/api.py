@@ -18,21 +18,21 @@ from pathlib import Path
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
-from stepnc_graph.loader import LoadResult, Progress, load_source, refuse_graph_name_clashes
-from stepnc_graph.naming import P21_NS, GraphNameError
-from stepnc_graph.sources import SourceError, plan_sources, refuse_replacing_other_files
+from stepnc_graph.loading.loader import LoadResult, Progress, load_source, refuse_graph_name_clashes
+from stepnc_graph.core.naming import P21_NS, GraphNameError
+from stepnc_graph.loading.sources import SourceError, plan_sources, refuse_replacing_other_files
 from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path, graph_layout
 
 if TYPE_CHECKING:
-    from stepnc_graph.export import export
-    from stepnc_graph.link import LinkResult, link
-    from stepnc_graph.query import QueryResult, query
-    from stepnc_graph.validate import validate
+    from stepnc_graph.exporting.exporter import export
+    from stepnc_graph.loading.link import LinkResult, link
+    from stepnc_graph.querying.query import QueryResult, query
+    from stepnc_graph.validation import validate
 
 #: API names whose modules are imported on first use: `load` (the commonest command) does not
 #: pay for the exporters, the SHACL engine or the link and query layers.
-_LAZY = {"export": "stepnc_graph.export", "link": "stepnc_graph.link", "LinkResult": "stepnc_graph.link",
-         "query": "stepnc_graph.query", "QueryResult": "stepnc_graph.query", "validate": "stepnc_graph.validate"}
+_LAZY = {"export": "stepnc_graph.exporting.exporter", "link": "stepnc_graph.loading.link", "LinkResult": "stepnc_graph.loading.link",
+         "query": "stepnc_graph.querying.query", "QueryResult": "stepnc_graph.querying.query", "validate": "stepnc_graph.validation"}
 
 __all__ = ["Compacted", "GraphInfo", "GraphNameError", "LinkResult", "LoadResult", "QueryResult", "SourceError",
            "StoreBusy", "StoreError", "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
@@ -68,12 +68,12 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
     """Load each file (a directory: every Part 21 file under it; ``-``: standard input)
     into its own named graph, replacing an earlier load of the same file.
 
-    Graph IRIs are planned first (:func:`stepnc_graph.sources.plan_sources`):
+    Graph IRIs are planned first (:func:`stepnc_graph.loading.sources.plan_sources`):
     two inputs that would share a graph, or a graph already holding another
-    file (unless ``replace``), raise :class:`~stepnc_graph.sources.SourceError`
+    file (unless ``replace``), raise :class:`~stepnc_graph.loading.sources.SourceError`
     before anything is written. A file that does not parse in strict mode raises
     Part21SyntaxError; files before it stay loaded, the store is unchanged for it.
-    ``derived=False`` leaves out the derived query layer (:mod:`stepnc_graph.derive`):
+    ``derived=False`` leaves out the derived query layer (:mod:`stepnc_graph.loading.derive`):
     for a throw-away store that only :func:`validate` reads; so is ``positions=False``
     (Part 21 files: no ``p21:id``/``p21:line`` triples, the lines in ``LoadResult.lines``).
     """
@@ -86,11 +86,11 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
 
 
 def unload(store: Store, graph: str, compact: bool = False) -> bool:
-    """Remove a program's graph with its derived layer and its link graphs (:mod:`stepnc_graph.link`),
+    """Remove a program's graph with its derived layer and its link graphs (:mod:`stepnc_graph.loading.link`),
     or a link graph alone, atomically; False if there was none. Which graphs are the program's
-    comes from the store's records (:meth:`~stepnc_graph.naming.GraphLayout.unloaded_with`), so
+    comes from the store's records (:meth:`~stepnc_graph.core.naming.GraphLayout.unloaded_with`), so
     another program is never removed with it; the vocabulary graph and a derived layer on its
-    own raise :class:`~stepnc_graph.naming.GraphNameError`. Beside other programs the store
+    own raise :class:`~stepnc_graph.core.naming.GraphNameError`. Beside other programs the store
     compacts once enough was deleted (:data:`~stepnc_graph.store.COMPACT_AT`); ``compact`` gives
     the space back now."""
     companions = graph_layout(store).unloaded_with(graph)

@@ -34,7 +34,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn, TypeVar, cast
 
 import click
 
-from stepnc_graph.errors import CONTROLS, escaped
+from stepnc_graph.core.errors import CONTROLS, escaped
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -152,7 +152,7 @@ err = cast("Console", _LazyConsole(stderr=True))
 def show_warnings() -> None:
     """Print stepnc-graph's own warnings (a stale compiled model, say) as ``warning: ...`` lines on
     stderr; other libraries' warnings (deprecations) stay with Python's handler and its filters."""
-    from stepnc_graph.errors import StepncGraphWarning
+    from stepnc_graph.core.errors import StepncGraphWarning
 
     previous = warnings.showwarning
 
@@ -218,10 +218,10 @@ def fail_input(exc: Exception, fmt: str = "text") -> NoReturn:
 
 def user_errors() -> tuple[type[BaseException], ...]:
     """The exceptions that mean bad input or usage, not a bug (imported when needed)."""
-    from stepnc_graph.export import ExportError
-    from stepnc_graph.naming import GraphNameError
+    from stepnc_graph.exporting.exporter import ExportError
+    from stepnc_graph.core.naming import GraphNameError
     from stepnc_graph.part21 import Part21SyntaxError
-    from stepnc_graph.sources import SourceError
+    from stepnc_graph.loading.sources import SourceError
     from stepnc_graph.store import StoreError
 
     return (UsageProblem, StoreError, SourceError, GraphNameError, ExportError, Part21SyntaxError, OSError,
@@ -278,7 +278,7 @@ class RemoteOptions:
         """An endpoint was asked for (``$STEPNC_GRAPH_ENDPOINT`` counts unless --store or --memory is given)."""
         import os
 
-        from stepnc_graph.remote import ENDPOINT_ENV
+        from stepnc_graph.store.remote import ENDPOINT_ENV
 
         given = bool(self.endpoint or self.query_url)
         if given and (store_path is not None or memory):
@@ -286,7 +286,7 @@ class RemoteOptions:
         return given or (store_path is None and not memory and bool(os.environ.get(ENDPOINT_ENV)))
 
     def open(self) -> Store:
-        from stepnc_graph.remote import open_remote
+        from stepnc_graph.store.remote import open_remote
 
         return open_remote(self.endpoint, self.query_url, self.update_url, self.store_url, self.timeout)
 

@@ -1,7 +1,7 @@
 """`stepnc-graph link`: attach PLM identifiers to a program's instances, in a graph of their own.
 
 A write: it takes the store's writer lock (another writer fails with exit 2, or
-waits with ``--wait``). The work is :func:`stepnc_graph.link.link`.
+waits with ``--wait``). The work is :func:`stepnc_graph.loading.link.link`.
 """
 
 from __future__ import annotations
@@ -51,11 +51,11 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bo
     (--allow-unknown; they are listed); 2 rows matched no single entity (none
     linked, they are listed), or bad input or usage.
     """
-    from stepnc_graph.sources import check_iri
+    from stepnc_graph.loading.sources import check_iri
 
     if graph is not None:
         check_iri(graph, "--graph")
-    from stepnc_graph.link import link
+    from stepnc_graph.loading.link import link
 
     with open_writer(store_path, wait=wait, create=False) as store:
         result = link(store, mapping, graph, allow_unknown=allow_unknown, replace=replace)

@@ -23,7 +23,7 @@ from stepnc_graph.cli.common import (
     out,
     root_option,
 )
-from stepnc_graph.resources import data_root
+from stepnc_graph.core.resources import data_root
 
 
 @click.group()
@@ -39,7 +39,7 @@ def ontology_build(root: Path | None, check: bool) -> None:
 
     Output is byte-stable: building twice changes nothing.
     """
-    from stepnc_graph.build import build
+    from stepnc_graph.artefacts.build import build
     from stepnc_graph.express import ExpressSyntaxError
     from stepnc_graph.schema import SchemaError
 
@@ -73,7 +73,7 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
 
     from stepnc_graph.express import ExpressSyntaxError
     from stepnc_graph.schema import SchemaError
-    from stepnc_graph.stats import ontology_stats, rule_stats
+    from stepnc_graph.artefacts.stats import ontology_stats, rule_stats
 
     try:
         rows = ontology_stats(root or data_root())

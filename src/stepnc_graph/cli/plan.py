@@ -51,8 +51,8 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     (finishing before roughing on a feature), tools shared across setups and
     the critical (most used) tool. Exit 2 for bad input.
     """
-    from stepnc_graph.plan import PlanError, build_plan
-    from stepnc_graph.plan import png as to_png
+    from stepnc_graph.workplan.plan import PlanError, build_plan
+    from stepnc_graph.workplan.plan import png as to_png
 
     if program is not None and not program.is_file():
         _fail(f"{program}: no such program file")
@@ -84,7 +84,7 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
 
 
 def _print_summary(plan: object) -> None:
-    from stepnc_graph.plan import Plan
+    from stepnc_graph.workplan.plan import Plan
 
     assert isinstance(plan, Plan)
     changes = plan.tool_changes()

@@ -123,7 +123,7 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
     Exit codes: 0 ok; 2 a syntax error, bad parameter, unknown query or graph
     (with file, line and column where they apply).
     """
-    from stepnc_graph.query import Query, QueryError, execute, parse_header, refuse_service, resolve
+    from stepnc_graph.querying.query import Query, QueryError, execute, parse_header, refuse_service, resolve
 
     if text is None and not args:
         _fail("give a query: NAME, FILE.rq or -e 'SPARQL' (`stepnc-graph queries` lists the library)")
@@ -163,7 +163,7 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 def queries_cmd(name: str | None, fmt: str) -> None:
     """List the query library (names, titles, parameters), or show query NAME in full."""
-    from stepnc_graph.query import QueryError, describe_library, resolve
+    from stepnc_graph.querying.query import QueryError, describe_library, resolve
 
     if name is not None:
         try:

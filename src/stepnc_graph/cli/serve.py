@@ -45,7 +45,7 @@ def serve_cmd(store_path: Path | None, host: str, port: int, writable: bool, tim
     New loads into the store are served as soon as they are published. Stop
     with Ctrl-C or SIGTERM; the store is left as it was.
     """
-    from stepnc_graph.serve import Endpoint, is_loopback
+    from stepnc_graph.server.serve import Endpoint, is_loopback
     from stepnc_graph.store import default_store_path
 
     if not is_loopback(host):

@@ -39,8 +39,8 @@ if TYPE_CHECKING:
     from rich.progress import Progress
 
     from stepnc_graph.cli.common import RemoteOptions
-    from stepnc_graph.loader import LoadResult
-    from stepnc_graph.sources import Source
+    from stepnc_graph.loading.loader import LoadResult
+    from stepnc_graph.loading.sources import Source
     from stepnc_graph.store import Store
 
 _COLOURS = {"error": "red", "warning": "yellow"}
@@ -75,8 +75,8 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
     Exit codes: 0 loaded cleanly, 1 loaded with diagnostics, 2 a file could not
     be loaded (syntax error in strict mode, unreadable) or bad usage.
     """
-    from stepnc_graph.loader import refuse_graph_name_clashes
-    from stepnc_graph.sources import plan_sources, refuse_replacing_other_files
+    from stepnc_graph.loading.loader import refuse_graph_name_clashes
+    from stepnc_graph.loading.sources import plan_sources, refuse_replacing_other_files
 
     sources = plan_sources(inputs, base_iri)
     with open_writer(store_path, memory, wait, remote) as store:
@@ -91,7 +91,7 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
               fmt: str) -> tuple[list[LoadResult], list[BaseException]]:
     """Load each source in turn; a file that fails is reported and the others go on."""
     from stepnc_graph.cli.common import user_errors
-    from stepnc_graph.loader import load_source
+    from stepnc_graph.loading.loader import load_source
 
     results: list[LoadResult] = []
     failures: list[BaseException] = []
@@ -171,7 +171,7 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
 
 def _check_graph(graph: str | None, what: str = "--graph") -> None:
     if graph is not None:
-        from stepnc_graph.sources import check_iri
+        from stepnc_graph.loading.sources import check_iri
 
         check_iri(graph, what)
 
@@ -194,7 +194,7 @@ def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None
     Exports are deterministic: the same graph gives the same bytes. Exit 2 for
     a graph that is not in the store or an output that cannot be written.
     """
-    from stepnc_graph.export import export
+    from stepnc_graph.exporting.exporter import export
 
     _check_graph(graph)
     if output is not None and not output.parent.is_dir():
@@ -255,7 +255,7 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
     others are still removed).
     """
     from stepnc_graph.api import unload
-    from stepnc_graph.naming import GraphNameError
+    from stepnc_graph.core.naming import GraphNameError
 
     for g in graphs:
         _check_graph(g, "graph")

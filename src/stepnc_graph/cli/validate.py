@@ -59,8 +59,8 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     any result). Exit codes: 0 no violation (warnings and infos do not fail),
     1 violations, 2 bad input, refused shapes or usage.
     """
-    from stepnc_graph.sources import check_iri
-    from stepnc_graph.validate import ShapesError, validate
+    from stepnc_graph.loading.sources import check_iri
+    from stepnc_graph.validation import ShapesError, validate
 
     in_store = store_path is not None or remote.wanted(store_path, bool(files))
     if bool(files) == in_store:

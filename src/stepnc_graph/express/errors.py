@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from stepnc_graph.errors import PositionedSyntaxError
+from stepnc_graph.core.errors import PositionedSyntaxError
 
 
 class ExpressSyntaxError(PositionedSyntaxError):

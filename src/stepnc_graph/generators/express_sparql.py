@@ -32,7 +32,7 @@ from typing import Any
 
 import express_schema.parse as ast
 
-from stepnc_graph.naming import P21_NS, Naming
+from stepnc_graph.core.naming import P21_NS, Naming
 from stepnc_graph.schema.model import (
     AggregateType,
     Attribute,
@@ -44,7 +44,7 @@ from stepnc_graph.schema.model import (
     TypeRef,
 )
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.typemap import value_shape
+from stepnc_graph.vocabulary.typemap import value_shape
 
 RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
 UNKNOWN = "?unknown"

@@ -7,7 +7,7 @@ generic.ttl
     ``rdfs:subPropertyOf`` it: ``stepnc:executable.its_id`` and eight other
     ``its_id`` properties are all ``attr:its_id``. SPARQL engines do not apply
     sub-properties, so the loader materialises ``attr:`` values in each file's
-    derived layer (:mod:`stepnc_graph.derive`). A generic property is an
+    derived layer (:mod:`stepnc_graph.loading.derive`). A generic property is an
     ``owl:DatatypeProperty`` or an ``owl:ObjectProperty`` like its per-entity
     properties; for the few names whose per-entity properties are of both kinds
     (``diameter``: a length in one entity, a toleranced length in another) it is
@@ -16,7 +16,7 @@ generic.ttl
     and the per-entity properties are sub-properties of ``attr:<name>.literal``
     or ``attr:<name>.node``, which it names with ``rdfs:seeAlso``.
 analysis.ttl
-    The analysis vocabulary (``sga:``) from :mod:`stepnc_graph.vocabulary`:
+    The analysis vocabulary (``sga:``) from :mod:`stepnc_graph.graphs.vocabulary_graph`:
     classes grouping ISO classes (roughing / finishing operations, ...), the
     derived-layer properties, and own-words definitions of the core entities.
 """
@@ -30,7 +30,7 @@ from rdflib.namespace import SKOS
 
 from stepnc_graph.generators.owl import declare_annotations, is_data
 from stepnc_graph.generators.rdfio import stable_turtle
-from stepnc_graph.naming import (
+from stepnc_graph.core.naming import (
     ANALYSIS_NS,
     ANALYSIS_ONTOLOGY,
     ATTRIBUTE_NS,
@@ -42,8 +42,8 @@ from stepnc_graph.naming import (
 )
 from stepnc_graph.schema.model import Attribute
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.typemap import value_shape
-from stepnc_graph.vocabulary import ANALYSIS_CLASSES, ANALYSIS_PROPERTIES, CORE_DEFINITIONS, derived_entities
+from stepnc_graph.vocabulary.typemap import value_shape
+from stepnc_graph.graphs.vocabulary_graph import ANALYSIS_CLASSES, ANALYSIS_PROPERTIES, CORE_DEFINITIONS, derived_entities
 
 
 def attributes_by_name(model: SchemaModel) -> dict[str, list[Attribute]]:

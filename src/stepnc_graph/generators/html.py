@@ -16,11 +16,11 @@ from collections import defaultdict
 from html import escape
 from pathlib import Path
 
-from stepnc_graph.naming import Naming
+from stepnc_graph.core.naming import Naming
 from stepnc_graph.schema.catalog import Catalog
 from stepnc_graph.schema.model import DefinedType, Entity, EnumerationType, SelectType
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.vocabulary import CORE_DEFINITIONS
+from stepnc_graph.graphs.vocabulary_graph import CORE_DEFINITIONS
 
 _WORD = re.compile(r"[a-z_][a-z0-9_]*")
 

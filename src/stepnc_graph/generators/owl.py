@@ -23,7 +23,7 @@ from rdflib.term import Node
 from rdflib.collection import Collection
 from rdflib.namespace import DCTERMS, SKOS
 
-from stepnc_graph.naming import P21, P21_ONTOLOGY, Naming
+from stepnc_graph.core.naming import P21, P21_ONTOLOGY, Naming
 from stepnc_graph.schema.catalog import Catalog
 from stepnc_graph.schema.model import (
     Attribute,
@@ -37,7 +37,7 @@ from stepnc_graph.schema.model import (
 )
 from stepnc_graph.schema.view import SchemaModel
 from stepnc_graph.generators.rdfio import stable_turtle
-from stepnc_graph.typemap import ValueShape, value_shape
+from stepnc_graph.vocabulary.typemap import ValueShape, value_shape
 
 KIND_NAMES = {Entity: "ENTITY", DefinedType: "DEFINED_TYPE", EnumerationType: "ENUMERATION",
               SelectType: "SELECT"}

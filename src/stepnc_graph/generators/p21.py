@@ -7,8 +7,8 @@ from rdflib.collection import Collection
 
 from stepnc_graph.generators.owl import SCHEMA_ANNOTATIONS
 from stepnc_graph.generators.rdfio import stable_turtle
-from stepnc_graph.naming import P21, P21_ONTOLOGY
-from stepnc_graph.p21vocab import TERMS
+from stepnc_graph.core.naming import P21, P21_ONTOLOGY
+from stepnc_graph.vocabulary.p21 import TERMS
 
 _TYPES = {
     "annotation": OWL.AnnotationProperty,

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import keyword
 
-from stepnc_graph.naming import P21_NS, Naming
-from stepnc_graph.p21vocab import TERMS
+from stepnc_graph.core.naming import P21_NS, Naming
+from stepnc_graph.vocabulary.p21 import TERMS
 from stepnc_graph.schema.model import EnumerationType
 from stepnc_graph.schema.view import SchemaModel
 
@@ -60,4 +60,4 @@ class PythonVocabularyGenerator:
                                       "ISO 14649 vocabulary: entities, types, attributes, enumeration items.")
         text += "\n\n" + _class_source("P21", P21_NS, [t.name for t in TERMS],
                                        "Part 21 / EXPRESS structure terms.")
-        return {"vocab.py": text}
+        return {"vocabulary/terms.py": text}

@@ -23,7 +23,7 @@ only; SHACL's ``sh:targetClass`` and ``sh:class`` follow ``rdfs:subClassOf``
 *in the data graph*. ``shapes/support.ttl`` is that hierarchy (supertypes, SELECT
 membership, enumeration items' types) and is part of every data graph the
 shapes are run on: merged into the data for pySHACL, compiled into the queries
-by :mod:`stepnc_graph.validate`.
+by :mod:`stepnc_graph.validation`.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from stepnc_graph.generators.express_sparql import (
     translate_rule,
 )
 from stepnc_graph.generators.rdfio import stable_turtle
-from stepnc_graph.naming import P21, P21_NS, Naming
+from stepnc_graph.core.naming import P21, P21_NS, Naming
 from stepnc_graph.schema.catalog import Catalog
 from stepnc_graph.schema.model import (
     AggregateType,
@@ -60,7 +60,7 @@ from stepnc_graph.schema.model import (
     WhereRule,
 )
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.typemap import XSD_OF, value_shape
+from stepnc_graph.vocabulary.typemap import XSD_OF, value_shape
 
 SHAPES_NS = "https://w3id.org/stepnc-graph/shapes#"
 SHAPES = Namespace(SHAPES_NS)

@@ -2,7 +2,7 @@
 
 An instance that fits the schema becomes a node typed with its entity class
 (every partial entity's class for a complex instance) and one triple per set
-value, in the representation of :mod:`stepnc_graph.typemap`. One that does not
+value, in the representation of :mod:`stepnc_graph.vocabulary.typemap`. One that does not
 fit -- unknown entity name, wrong parameter count, a value of the wrong type, a
 reference to an instance the file does not define -- is kept as a
 ``p21:RawInstance`` holding its exact source text, with a diagnostic (one per
@@ -19,8 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from stepnc_graph.mapping import terms as T
-from stepnc_graph.mapping.plan import (
+from stepnc_graph.mapping import ntriples as T
+from stepnc_graph.mapping.plans import (
     P21_DERIVED,
     P21_EMPTY,
     P21_ENTITY_NAME,
@@ -102,7 +102,7 @@ def _refs(inst: Instance) -> list[int]:
 
 @dataclass(frozen=True)
 class DerivedTables:
-    """What the mapper writes into a file's derived layer while it maps (:mod:`stepnc_graph.derive`).
+    """What the mapper writes into a file's derived layer while it maps (:mod:`stepnc_graph.loading.derive`).
 
     The mapper already holds each instance's class and attribute values as
     N-Triples terms, so writing the class closure, the generic attribute
@@ -112,7 +112,7 @@ class DerivedTables:
     the IRIs of its superclasses; ``generic``: attribute property IRI -> its
     generic property IRI; ``labels``: the its_id properties whose non-empty
     value is also an ``rdfs:label``. Values that are blank nodes (lists,
-    typed values) are written to the store by :func:`~stepnc_graph.derive.derive`:
+    typed values) are written to the store by :func:`~stepnc_graph.loading.derive.derive`:
     a blank node cannot be named in another graph's document. Their lines go to
     :attr:`InstanceMapper.derived_blank_lines` instead, the blank nodes named as
     in the program's lines, for a replacement to compare with the version in the

@@ -23,7 +23,7 @@ from typing import Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.mapping.plan import (
+from stepnc_graph.mapping.plans import (
     P21_DERIVED,
     P21_EMPTY,
     P21_ID,
@@ -41,8 +41,8 @@ from stepnc_graph.mapping.plan import (
     Plans,
     Slot,
 )
-from stepnc_graph.mapping.terms import RDF, RDF_TYPE, XSD
-from stepnc_graph.naming import P21_NS
+from stepnc_graph.mapping.ntriples import RDF, RDF_TYPE, XSD
+from stepnc_graph.core.naming import P21_NS
 from stepnc_graph.part21.format import FormatError
 from stepnc_graph.part21.format import format_real as part21_real
 from stepnc_graph.part21.strings import encode

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
-from stepnc_graph.errors import PositionedSyntaxError
+from stepnc_graph.core.errors import PositionedSyntaxError
 
 Severity = Literal["error", "warning", "info"]
 

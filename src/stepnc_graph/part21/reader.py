@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from stepnc_graph.errors import show
+from stepnc_graph.core.errors import show
 from stepnc_graph.part21.diagnostics import Diagnostic, Part21SyntaxError
 from stepnc_graph.part21.source import read_text_source
 from stepnc_graph.part21.strings import StringDecodeError, decode

@@ -3,7 +3,7 @@
 Parsing and resolving the EXPRESS schemas takes most of a second, which would
 be the whole cost of a command run on a small program. ``stepnc-graph ontology
 build`` therefore writes the resolved model (and the mapping plans, see
-:mod:`stepnc_graph.mapping.plan`) to one JSON file shipped in the wheel beside
+:mod:`stepnc_graph.mapping.plans`) to one JSON file shipped in the wheel beside
 the vocabulary. JSON, not pickle: reading it runs no code from the file.
 
 What the file holds:
@@ -42,8 +42,8 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from stepnc_graph.errors import StepncGraphWarning
-from stepnc_graph.resources import sources_digest
+from stepnc_graph.core.errors import StepncGraphWarning
+from stepnc_graph.core.resources import sources_digest
 from stepnc_graph.schema.catalog import Catalog, load_catalog_model
 from stepnc_graph.schema.model import (
     AggregateType,
@@ -344,6 +344,6 @@ def load_or_build(ontology: Path) -> Compiled:
 @lru_cache(maxsize=1)
 def shipped() -> Compiled:
     """The shipped ISO 14649 model (see :func:`load_or_build`), once per process."""
-    from stepnc_graph.resources import ontology_dir
+    from stepnc_graph.core.resources import ontology_dir
 
     return load_or_build(ontology_dir())

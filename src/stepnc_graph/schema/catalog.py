@@ -11,11 +11,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from stepnc_graph.resources import express_dir
+from stepnc_graph.core.resources import express_dir
 
 if TYPE_CHECKING:
     from stepnc_graph.express.parser import ParsedSchema
-    from stepnc_graph.naming import Naming
+    from stepnc_graph.core.naming import Naming
     from stepnc_graph.schema.view import SchemaModel
 
 
@@ -33,7 +33,7 @@ class Catalog:
     @property
     def naming(self) -> "Naming":
         """IRI minting for this catalogue's namespace."""
-        from stepnc_graph.naming import Naming
+        from stepnc_graph.core.naming import Naming
 
         return Naming(self.namespace, self.ontology_base)
 

@@ -1,0 +1,1 @@
+"""The generated artefacts: building and checking them (`ontology build`), their statistics."""

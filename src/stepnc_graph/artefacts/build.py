@@ -1,0 +1,107 @@
+"""Regenerate (or check) every generated artefact from ``ontology/express/``.
+
+Paths are relative to a project root: ``ontology/*.ttl``, ``shapes/*.ttl``,
+``ontology/compiled-model.json`` (the resolved model and mapping plans that
+commands read instead of the EXPRESS, see :mod:`stepnc_graph.schema.cache`),
+``shapes/compiled-checks.json`` (the shapes as SPARQL checks, see
+:mod:`stepnc_graph.validation.compiled`),
+``docs/ontology.html``, ``src/stepnc_graph/vocab.py`` and ``ontology/editions/editions.json``
+(what tells the editions apart, see :mod:`stepnc_graph.schema.editions`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from stepnc_graph.generators.generic import GenericVocabularyGenerator
+from stepnc_graph.generators.html import HtmlReferenceGenerator
+from stepnc_graph.generators.context import JsonLdContextGenerator
+from stepnc_graph.generators.owl import OwlGenerator
+from stepnc_graph.generators.p21 import P21VocabularyGenerator
+from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
+from stepnc_graph.generators.shacl import ShapesGenerator
+from stepnc_graph.mapping.plans import Plans
+from stepnc_graph.schema import cache, editions
+from stepnc_graph.schema.catalog import EDITIONS, load_catalog_model
+from stepnc_graph.schema.view import SchemaModel
+from stepnc_graph.validation import compiled
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    written: tuple[str, ...]
+    unchanged: tuple[str, ...]
+    stale: tuple[str, ...]  # differ from a fresh build (check mode) or were rewritten
+
+
+def generate(express_directory: Path | None = None) -> dict[str, str]:
+    """All generated files, keyed by path relative to the project root."""
+    catalog, model = load_catalog_model(express_directory)
+    naming = catalog.naming
+    out: dict[str, str] = {}
+    for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
+        out[f"ontology/{rel}"] = text
+    for rel, text in GenericVocabularyGenerator(model, naming).outputs().items():
+        out[f"ontology/{rel}"] = text
+    for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
+        out[f"ontology/{rel}"] = text
+    plans = Plans(model, naming)
+    for rel, text in JsonLdContextGenerator(plans, naming).outputs().items():
+        out[f"ontology/{rel}"] = text
+    digest = cache.express_digest(catalog.directory)
+    out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
+    shapes = ShapesGenerator(model, catalog, naming).outputs()
+    for rel, text in shapes.items():
+        out[f"shapes/{rel}"] = text
+    out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(shapes, catalog.directory.parent.parent / "shapes")
+    queries = catalog.directory.parent.parent / "queries"  # the library's examples, where there is one
+    for rel, text in HtmlReferenceGenerator(model, catalog, naming, queries).outputs().items():
+        out[f"docs/{rel}"] = text
+    for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
+        out[f"src/stepnc_graph/{rel}"] = text
+    out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
+    return out
+
+
+def edition_table(express_directory: Path, model: SchemaModel) -> str:
+    """``ontology/editions/editions.json``: the shipped model against each edition found beside it."""
+    models, sources = {editions.SHIPPED: model}, {editions.SHIPPED: "ontology/express/schemas.toml"}
+    for edition in EDITIONS:
+        directory = express_directory.parent / "editions" / edition
+        if (directory / "schemas.toml").is_file():
+            models[edition] = load_catalog_model(directory)[1]
+            sources[edition] = f"ontology/editions/{edition}/schemas.toml"
+    return editions.dumps(editions.table(models, sources))
+
+
+def compiled_checks(generated: dict[str, str], shapes_directory: Path) -> str:
+    """``shapes/compiled-checks.json``: the checks of the generated shapes and the hand-written
+    process rules (``shapes/process/*.ttl``), in the order ``validate`` reads them."""
+    texts = sorted(generated.items())
+    texts += [(f"process/{p.name}", p.read_text(encoding="utf-8"))
+              for p in sorted((shapes_directory / "process").glob("*.ttl"))]
+    data = frozenset(i for i, (name, _) in enumerate(texts) if name == compiled.SUPPORT_FILE)
+    graph, checks = compiled.compile_texts(texts, data)
+    value = compiled.digest([(name, text.encode("utf-8")) for name, text in texts])
+    return compiled.dumps([name for name, _ in texts], value, checks, compiled.hierarchy_of(graph))
+
+
+def build(root: Path, check: bool = False) -> BuildResult:
+    """Write the generated files under ``root``; with ``check`` only compare."""
+    files = generate(root / "ontology" / "express")
+    written, unchanged, stale = [], [], []
+    for rel, text in sorted(files.items()):
+        if not rel.startswith(("ontology/", "shapes/")) and not (root / rel.split("/")[0]).is_dir():
+            continue  # an installed data directory has no src/ or docs/ to refresh
+        path = root / rel
+        current = path.read_text(encoding="utf-8") if path.exists() else None
+        if current == text:
+            unchanged.append(rel)
+            continue
+        stale.append(rel)
+        if not check:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+            written.append(rel)
+    return BuildResult(tuple(written), tuple(unchanged), tuple(stale))

@@ -1,0 +1,444 @@
+"""Load Part 21 files into the store: one named graph per file, atomically.
+
+The work is a pipeline of generators -- reader -> mapper -> N-Triples chunks ->
+Oxigraph's bulk loader -- so memory follows the file text, not its instances.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pyoxigraph as ox
+
+from stepnc_graph import __version__
+from stepnc_graph.mapping import ntriples as T
+from stepnc_graph.mapping.mapper import InstanceMapper
+from stepnc_graph.loading.derive import derive, iso14649_rules
+from stepnc_graph.mapping.plans import (
+    P21_DUPLICATE,
+    P21_LINE,
+    P21_RAW_TEXT,
+    P21_SECTION,
+    P21_SYNTAX_ERROR,
+    P21_UNREADABLE_TEXT,
+    iso14649_plans,
+)
+from stepnc_graph.core.naming import (
+    P21_NS,
+    TOOL_IRI,
+    alias_iri,
+    default_graph_iri,
+    derived_graph_iri,
+    instance_id,
+    instance_prefix,
+    section_iri,
+)
+from stepnc_graph.part21.diagnostics import Diagnostic
+from stepnc_graph.part21.format import format_header
+from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
+from stepnc_graph.part21.source import decode_source, read_source, read_stdin
+from stepnc_graph.loading.sources import Source
+from stepnc_graph.store import Chunk, Companion, GraphStore, Shadow, Store, graph_layout
+from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary
+
+if TYPE_CHECKING:
+    from stepnc_graph.loading.jsonld import JsonLdLoad
+
+DCT = "http://purl.org/dc/terms/"
+OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
+PROV = "http://www.w3.org/ns/prov#"
+RDFS = "http://www.w3.org/2000/01/rdf-schema#"
+#: A DATA section opener anywhere (files written on one line exist). A match
+#: inside a string only adds section triples, which still round-trip; missing
+#: a real opener would merge sections on export.
+_DATA_OPENER = re.compile(r"\bDATA[ \t\r\n]*[(;]")
+#: FILE_SCHEMA names accepted besides the model's own schema names: NIST's
+#: merged schema, which holds exactly the schemas stepnc-graph ships.
+SCHEMA_ALIASES = {"COMBINED_SCHEMA"}
+CHUNK_LINES = 20000
+#: derived-layer lines the mapper collects before they go to the store as one companion chunk
+#: (~10 MB of text: each chunk is one more bulk-load call, so not many, and not all kept to the end)
+DERIVED_CHUNK_LINES = 60000
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass
+class LoadResult:
+    """What one file's load did; ``instances`` counts mapped and raw instances.
+
+    ``triples`` are the file's graph; ``derived_triples`` its derived layer
+    (``<graph>/derived``, see :mod:`stepnc_graph.loading.derive`).
+    """
+
+    path: str
+    graph: str
+    instances: int = 0
+    raw: int = 0  # kept raw: do not fit the schema, or (unreadable) do not parse
+    unreadable: int = 0
+    unreadable_texts: int = 0  # text that names no instance, kept (p21:unreadableText)
+    triples: int = 0
+    defined: int = 0
+    derived_triples: int = 0
+    seconds: float = 0.0
+    diagnostics: list[Diagnostic] = field(default_factory=list)
+    #: the Part 21 mapper wrote the graph and saw every list within its bounds (see
+    #: :mod:`stepnc_graph.validation.implied`); False for a JSON-LD load
+    lists_within_bounds: bool = field(default=False, repr=False)
+    #: ... and saw a value for every mandatory attribute (no ``$`` or ``*`` there)
+    mandatory_values_set: bool = field(default=False, repr=False)
+    #: each instance's line by #id, for a load that wrote no ``p21:id``/``p21:line``
+    #: triples (``positions=False``); None otherwise
+    lines: dict[int, int] | None = field(default=None, repr=False)
+
+    def asdict(self) -> dict[str, Any]:
+        return {
+            "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
+            "unreadable_instances": self.unreadable, "unreadable_texts": self.unreadable_texts,
+            "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
+            "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
+        }
+
+
+def _header_triples(g: str, header: Header) -> list[str]:
+    """DCTERMS / p21 triples for the HEADER fields of ISO 10303-21 8.2."""
+    s = f"<{g}>"
+    out: list[str] = []
+
+    def add(pred: str, value: Any) -> None:
+        if isinstance(value, str) and value:
+            out.append(f"{s} <{pred}> {T.string(value)} .\n")
+
+    def each(pred: str, value: Any) -> None:
+        for v in value if isinstance(value, list) else [value]:
+            add(pred, v)
+
+    desc = header.entities.get("FILE_DESCRIPTION") or []
+    if desc:
+        each(DCT + "description", desc[0])
+    if len(desc) > 1:
+        add(P21_NS + "implementationLevel", desc[1])
+    name = header.entities.get("FILE_NAME") or []
+    for i, pred in enumerate([DCT + "title", DCT + "created", DCT + "creator", DCT + "publisher",
+                              P21_NS + "preprocessorVersion", P21_NS + "originatingSystem",
+                              P21_NS + "authorization"]):
+        if i < len(name):
+            each(pred, name[i])
+    for schema in header.schemas:
+        add(P21_NS + "schemaName", schema)
+    add(P21_NS + "headerText", header.text)
+    if header.repaired:
+        add(P21_NS + "repairedHeaderText", format_header(header))
+    return out
+
+
+def load_time() -> datetime:
+    """Now, or ``$SOURCE_DATE_EPOCH`` when set: the reproducible-builds convention, so that
+    two loads of one file give byte-identical exports (CI, PLM diffs)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    if epoch.isdigit():
+        return datetime.fromtimestamp(int(epoch), timezone.utc)
+    return datetime.now(timezone.utc)
+
+
+class _Load:
+    """One file's load: holds the reader, the mapper and the running counts.
+
+    ``path`` is the file (None for standard input); ``name`` is what messages
+    and the graph's ``dcterms:source`` call it.
+    """
+
+    def __init__(self, name: str, path: Path | None, raw: bytes, lenient: bool, graph: str,
+                 progress: Progress | None, derived: bool = True, positions: bool = True) -> None:
+        self.path = path
+        self.name = name
+        text, encoding = decode_source(raw, name)
+        self.text = text
+        self.raw = raw
+        self.graph = graph
+        self.progress = progress
+        self.reader = Part21Reader(text, name, lenient)
+        self.reader.diagnostics[:0] = encoding
+        prefix = instance_prefix(graph)
+        several = len(_DATA_OPENER.findall(text)) > 1  # edition 3: instances record their section
+        self.mapper = InstanceMapper(iso14649_plans(),
+                                     lambda i: f"{prefix}i{i}", defined_ids(text),
+                                     name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
+                                     iso14649_rules().tables() if derived else None,
+                                     None if positions else {})
+        #: derived-layer triples the mapper wrote (None: none, see derive())
+        self.derived_written: int | None = 0
+        self.derived = derived
+        self.result = LoadResult(name, graph)
+        self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
+        self.started = time.perf_counter()
+
+    @classmethod
+    def of_file(cls, path: str | Path, lenient: bool, base_iri: str | None, progress: Progress | None) -> "_Load":
+        """The load of ``path`` into graph ``base_iri`` (default: from the file name)."""
+        p = Path(path)
+        return cls(str(p), p, read_source(p), lenient, base_iri or default_graph_iri(str(p)), progress)
+
+    def chunks(self) -> Iterator[Chunk]:
+        out: list[str] = []
+        result = self.result
+        total = len(self.text)
+        derived = self.mapper.derived_lines
+        for inst in self.reader.instances():
+            self.mapper.map(inst, out)
+            result.instances += 1
+            if len(out) >= CHUNK_LINES:
+                result.triples += len(out)
+                yield "".join(out)
+                out.clear()
+                if len(derived) >= DERIVED_CHUNK_LINES:
+                    yield self.derived_chunk()
+                    yield self.shadow_chunk()
+                if self.progress:
+                    self.progress(inst.end, total)
+        out.extend(self.aliases())
+        out.extend(self.duplicates())
+        out.extend(self.unreadable_texts())
+        result.triples += len(out)
+        result.raw = self.mapper.raw_count
+        result.lists_within_bounds = self.mapper.lists_within_bounds
+        result.mandatory_values_set = self.mapper.mandatory_values_set
+        result.lines = self.mapper.positions
+        result.unreadable = len(self.mapper.unreadable)
+        result.unreadable_texts = len(self.reader.unreadable_texts)
+        result.defined = self.reader.defined
+        meta = self.metadata()
+        result.triples += len(meta)
+        yield "".join(out) + "".join(meta)
+        if derived:
+            yield self.derived_chunk()
+        if self.mapper.derived_blank_lines:
+            yield self.shadow_chunk()
+        if self.progress:
+            self.progress(total, total)
+
+    def derived_chunk(self) -> Companion:
+        """The derived-layer lines mapped so far, as a chunk for the file's derived graph."""
+        lines = self.mapper.derived_lines
+        self.derived_written = (self.derived_written or 0) + len(lines)
+        chunk = Companion(derived_graph_iri(self.graph), "".join(lines))
+        lines.clear()
+        return chunk
+
+    def shadow_chunk(self) -> Shadow:
+        """The derived-layer lines with the program's blank nodes mapped so far, which
+        :func:`derive` writes as quads: for a replacement to compare (see :class:`Shadow`)."""
+        lines = self.mapper.derived_blank_lines
+        chunk = Shadow(derived_graph_iri(self.graph), "".join(lines))
+        lines.clear()
+        return chunk
+
+    def aliases(self) -> list[str]:
+        """``owl:sameAs`` links from alias IRIs to instances with an unshared its_id."""
+        g = self.graph
+        return [f"<{alias_iri(g, scope, label)}> {OWL_SAME_AS} <{target}> .\n"
+                for (scope, label), target in sorted(self.mapper.labels.items()) if target is not None]
+
+    def duplicates(self) -> list[str]:
+        """Each later definition of an #id (its text and line), on the instance it repeats."""
+        subject, text = self.mapper.subject, self.text
+        out: list[str] = []
+        for k, (i, start, end, line) in enumerate(self.reader.duplicate_texts, start=1):
+            node = f"_:dup{k}"  # a node each: two identical later definitions are two triples' worth
+            out += [f"<{subject(i)}> {P21_DUPLICATE} {node} .\n",
+                    f"{node} {P21_RAW_TEXT} {T.string(text[start:end])} .\n",
+                    f"{node} {P21_LINE} {T.integer(line)} .\n"]
+        return out
+
+    def unreadable_texts(self) -> list[str]:
+        """Text that names no instance (lenient reading), on the graph's node: its text, line and
+        syntax error (and its DATA section, in a file with several)."""
+        g, text, section = f"<{self.graph}>", self.text, self.mapper.section
+        out: list[str] = []
+        for k, kept in enumerate(self.reader.unreadable_texts, start=1):
+            node = f"_:text{k}"
+            out += [f"{g} {P21_UNREADABLE_TEXT} {node} .\n",
+                    f"{node} {P21_RAW_TEXT} {T.string(text[kept.start:kept.end])} .\n",
+                    f"{node} {P21_LINE} {T.integer(kept.line)} .\n",
+                    f"{node} {P21_SYNTAX_ERROR} {T.string(kept.reason)} .\n"]
+            if section is not None:
+                out.append(f"{node} {P21_SECTION} <{section(kept.section)}> .\n")
+        return out
+
+    def metadata(self) -> list[str]:
+        g = self.graph
+        s = f"<{g}>"
+        now = load_time().isoformat(timespec="seconds")
+        activity = f"<{instance_prefix(g)}load>"
+        tool = f"<{TOOL_IRI}{__version__}>"
+        used = [f"{activity} <{PROV}used> <{self.path.resolve().as_uri()}> .\n"] if self.path else []
+        out = [
+            f"{s} {T.RDF_TYPE} <{P21_NS}ExchangeStructure> .\n",
+            f"{s} {T.RDF_TYPE} <{PROV}Entity> .\n",
+            f"{s} <{DCT}source> {T.string(str(self.path.resolve()) if self.path else self.name)} .\n",
+            *([f"{s} <{PROV}hadPrimarySource> <{self.path.resolve().as_uri()}> .\n"] if self.path else []),
+            f"{s} <{P21_NS}byteSize> {T.integer(len(self.raw))} .\n",
+            f"{s} <{P21_NS}sha256> {T.string(hashlib.sha256(self.raw).hexdigest())} .\n",
+            f"{s} <{P21_NS}instanceCount> {T.integer(self.result.instances)} .\n",
+            f"{s} <{P21_NS}rawInstanceCount> {T.integer(self.mapper.raw_count)} .\n",
+            f"{s} <{PROV}generatedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
+            f"{s} <{PROV}wasGeneratedBy> {activity} .\n",
+            f"{activity} {T.RDF_TYPE} <{PROV}Activity> .\n",
+            *used,
+            f"{activity} <{PROV}wasAssociatedWith> {tool} .\n",
+            f"{activity} <{PROV}endedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
+            f"{tool} {T.RDF_TYPE} <{PROV}SoftwareAgent> .\n",
+            f"{tool} <{RDFS}label> {T.string('stepnc-graph ' + __version__)} .\n",
+        ]
+        return out + _header_triples(g, self.reader.header) + self.edition3()
+
+    def edition3(self) -> list[str]:
+        """ANCHOR, REFERENCE, DATA section and SIGNATURE triples (ISO 10303-21:2016, 9-11, 13)."""
+        h = self.reader.header
+        g, subject = f"<{self.graph}>", self.mapper.subject
+        out = [f"{g} <{P21_NS}anchorSectionText> {T.string(h.anchor_text)} .\n"] if h.anchor_text else []
+        out += [f"<{subject(i)}> <{P21_NS}anchorName> {T.string(name)} .\n" for name, i in h.anchors]
+        if h.reference_text:
+            out.append(f"{g} <{P21_NS}referenceSectionText> {T.string(h.reference_text)} .\n")
+        out += [f"<{subject(int(name[1:]))}> <{P21_NS}externalReference> {T.typed(uri, T.XSD + 'anyURI')} .\n"
+                for name, uri in h.references if name.startswith("#")]
+        out += [f"{g} <{P21_NS}signatureText> {T.string(text)} .\n" for text in h.signatures]
+        if self.mapper.section is not None:
+            for i, text in enumerate(h.data_section_texts):
+                sec = f"<{self.mapper.section(i)}>"
+                out += [f"{sec} {T.RDF_TYPE} <{P21_NS}DataSection> .\n",
+                        f"{sec} <{P21_NS}sectionIndex> {T.integer(i + 1)} .\n",
+                        f"{sec} <{P21_NS}sectionText> {T.string(text)} .\n"]
+        return out
+
+    def schema_diagnostics(self) -> list[Diagnostic]:
+        unknown = [s for s in self.reader.header.schemas if s not in self.known_schemas]
+        return [Diagnostic.make("P21-UNKNOWN-SCHEMA", self.name, 1, 1, None,
+                                f"FILE_SCHEMA names {name}, not one of the loaded schemas") for name in unknown]
+
+    def diagnostics(self) -> list[Diagnostic]:
+        found = self.schema_diagnostics() + self.reader.diagnostics + self.mapper.diagnostics
+        return sorted(found, key=lambda d: (d.line, d.column, d.code))
+
+    def dangling(self, store: Store, where: str) -> list[Diagnostic]:
+        """References to instances the reader could not read (lenient mode only), and to ``#id``s
+        whose ``#12=`` the file holds only inside a string or unreadable text (the mapper took
+        them as defined: it must know the names before reading): from mapped instances (found in
+        the graph) and from raw ones (their parsed references)."""
+        unreadable = self.mapper.unreadable
+        external = {int(name[1:]) for name, _ in self.reader.header.references if name.startswith("#")}
+        missing = self.mapper.defined - self.reader.ids - external  # edition 3: defined in another file
+        if not unreadable and not missing:
+            return []
+        found: set[tuple[int, int, int, int]] = set()  # (line, column, referrer, target)
+        for p21_id, line, column, refs in self.mapper.raw_refs:
+            found.update((line, column, p21_id, target) for target in refs if target in unreadable or target in missing)
+        prefix = instance_prefix(self.graph)
+        targets = " ".join(f"(<{prefix}i{t}> {t})" for t in sorted(unreadable | missing))
+        positions = self.mapper.positions  # None: the graph holds p21:id and p21:line
+        owner = "?owner p21:id ?id ; p21:line ?line ." if positions is None else "FILTER(isIRI(?owner))"
+        # From each unreadable instance back to the instances referring to it, directly or
+        # through the blank nodes of lists and typed values (SPARQL: it runs on any store).
+        rows = store.query(f"""
+            PREFIX rdf: <{T.RDF}> PREFIX p21: <{P21_NS}>
+            SELECT DISTINCT ?owner ?id ?line ?n WHERE {{ GRAPH {ox.NamedNode(where)} {{
+              VALUES (?target ?n) {{ {targets} }}
+              {{ ?owner ?p ?target }} UNION {{
+                ?cell rdf:first|p21:value ?target .
+                ?cell (^rdf:rest|^rdf:first|^p21:value)* ?head .
+                ?owner ?p ?head . FILTER(!isBlank(?owner)) }}
+              {owner} }} }}""")
+        for row in rows:
+            if positions is None:
+                found.add((int(row["line"].value), 1, int(row["id"].value), int(row["n"].value)))
+            elif (ident := instance_id(self.graph, row["owner"].value)) is not None and ident in positions:
+                found.add((positions[ident], 1, ident, int(row["n"].value)))
+        return [Diagnostic.make("P21-UNRESOLVED-REF", self.name, line, column, p21_id,
+                                f"refers to #{target}, which could not be read (see its syntax error)"
+                                if target in unreadable else
+                                f"refers to #{target}, which is not defined in the file ('#{target}=' occurs only "
+                                f"inside a string or text that could not be read)")
+                for line, column, p21_id, target in sorted(found)]
+
+
+def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | None = None) -> Iterator[str]:
+    """The N-Triples a load of ``path`` writes, in chunks, without a store.
+
+    Everything but the store-dependent last step (the reference check and the
+    diagnostic count) and the derived layer; the benchmark uses it to time the
+    store on its own.
+    """
+    yield from (c for c in _Load.of_file(path, lenient, base_iri, None).chunks() if isinstance(c, str))
+
+
+def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
+              progress: Progress | None = None) -> LoadResult:
+    """Load one Part 21 file as the named graph ``base_iri`` (default: from the file name).
+
+    Raises :class:`~stepnc_graph.part21.Part21SyntaxError` in strict mode when
+    the file does not parse (and ``OSError`` when it cannot be read); the store
+    is then unchanged. Loading the same file again replaces its graph.
+    """
+    return _run(store, _Load.of_file(path, lenient, base_iri, progress))
+
+
+def load_source(store: Store, source: Source, *, lenient: bool = False,
+                progress: Progress | None = None, derived: bool = True, positions: bool = True) -> LoadResult:
+    """Load one planned input (:func:`stepnc_graph.loading.sources.plan_sources`): a file or standard input;
+    a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.loading.jsonld`).
+
+    ``derived=False`` writes no derived layer: for a throw-away store that only
+    validation reads (shapes see the program graph alone). ``positions=False``
+    (Part 21 only) writes no ``p21:id``/``p21:line`` triples and returns the lines
+    in :attr:`LoadResult.lines` instead, for the same use."""
+    if source.path is not None and source.path.suffix.lower() == ".jsonld":
+        from stepnc_graph.loading.jsonld import JsonLdLoad
+
+        job: _Load | JsonLdLoad = JsonLdLoad.of_source(source, progress)
+        job.derived = derived
+        return _run(store, job)
+    raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
+    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived, positions))
+
+
+def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
+    """Write a prepared load: the file's graph, its derived layer (``<graph>/derived``) and,
+    when missing or stale, the store's vocabulary graph, in one atomic load."""
+    refuse_graph_name_clashes(store, [job.graph])
+    extra: list[Diagnostic] = []
+
+    def before_commit(target: Callable[[str], str]) -> None:
+        # The dangling-reference check needs the loaded graph, so the count of
+        # diagnostics is the last triple written, inside the same atomic load.
+        where = target(job.graph)
+        extra.extend(job.dangling(store, where))
+        count = len(job.diagnostics()) + len(extra)
+        store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")
+        job.result.triples += 1
+        if store.path is not None or not isinstance(store, GraphStore):
+            # a persistent store (on disk, or remote) always holds the vocabulary; a
+            # throw-away one gets it when a query first needs it (query.execute)
+            ensure_vocabulary(store)
+        if job.derived:
+            job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written).triples
+
+    store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
+    job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))
+    job.result.seconds = time.perf_counter() - job.started
+    return job.result
+
+
+def refuse_graph_name_clashes(store: Store, graphs: Sequence[str]) -> None:
+    """:class:`~stepnc_graph.core.naming.GraphNameError` unless programs can be loaded as the graphs
+    ``graphs`` (one command's) beside what the store holds: no name of one may be reserved,
+    another program's or its companions', or held by a graph that is not its own
+    (:meth:`~stepnc_graph.core.naming.GraphLayout.refuse_programs`, from the store's records)."""
+    graph_layout(store).refuse_programs(graphs)

@@ -1,0 +1,1 @@
+"""Querying: the SPARQL query library, parameters as RDF terms, result formats."""

@@ -1,0 +1,534 @@
+"""Any SPARQL 1.1 store as the back end: the standard protocols only.
+
+A :class:`RemoteStore` offers what the commands use of :class:`~stepnc_graph.store.GraphStore`
+over three standard HTTP interfaces of a triple store (Oxigraph server, Apache
+Jena Fuseki, GraphDB, Virtuoso, Amazon Neptune ...):
+
+* SPARQL 1.1 Protocol, query (``query_url``): SELECT/ASK results as
+  ``application/sparql-results+json`` (read with pyoxigraph, so rows are the same
+  objects as the embedded store's), CONSTRUCT as N-Triples;
+* SPARQL 1.1 Protocol, update (``update_url``): ``MOVE``, ``DROP``;
+* SPARQL 1.1 Graph Store HTTP Protocol (``store_url``): ``POST`` N-Triples into a
+  graph, ``GET`` a graph.
+
+**A load is never half visible.** Its N-Triples go in bounded batches (flat
+memory for any file) into a fresh staging graph; the file's graph and its
+companions are replaced by one SPARQL Update request (``DROP SILENT GRAPH g ;
+MOVE SILENT GRAPH staging TO g``), which a store runs as one transaction. An
+interrupted load leaves the previous graph as it was, and at most a staging
+graph that a later load of this tool drops once it is a day old. Transient
+failures (connection errors, 429, 502, 503, 504) are retried with exponential
+backoff -- but not a request the endpoint may have carried out already: one
+that wrote (an update, a Graph Store POST) and got no answer within the timeout
+is reported, not sent again.
+
+**Answers are checked.** Each request waits at most ``timeout`` seconds for the
+whole answer (``--timeout``, ``$STEPNC_GRAPH_TIMEOUT``, default 120). A query's
+answer must be what the query asks for -- SPARQL results with the variables it
+selects, a boolean for ASK, RDF for CONSTRUCT (Oxigraph parses the query first, on
+an empty store, to know) -- and a complete document: a login page, a cut JSON
+document or another query's variables are an error naming the endpoint, never
+rows. Parameters are bound inside the query's groups (:mod:`stepnc_graph.store.bindings`),
+so FILTERs see them as they do in the embedded store.
+
+**Credentials** come from the environment only -- ``STEPNC_GRAPH_ENDPOINT_TOKEN``
+(a bearer token) or ``STEPNC_GRAPH_ENDPOINT_USER`` and
+``STEPNC_GRAPH_ENDPOINT_PASSWORD`` (HTTP basic) -- never from a command line that
+lands in shell history, and they are never printed (a URL holding a user or
+password is refused), and no error message shows them, even one whose body
+echoes the request. TLS certificates are verified; ``STEPNC_GRAPH_CA_BUNDLE``
+names a CA file for a private PKI, and wins over ``REQUESTS_CA_BUNDLE`` and
+``CURL_CA_BUNDLE`` (which apply when it is not set).
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+import re
+import time
+import uuid
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit, urlunsplit
+
+import pyoxigraph as ox
+
+from stepnc_graph.store.bindings import bind_in_groups
+from stepnc_graph.core.naming import STAGING, refuse_strangers
+from stepnc_graph.core.outbound import outbound_keyword
+from stepnc_graph.store import Chunk, Companion, Shadow, StoreError, graph_layout
+
+ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
+TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
+USER_ENV, PASSWORD_ENV = "STEPNC_GRAPH_ENDPOINT_USER", "STEPNC_GRAPH_ENDPOINT_PASSWORD"
+CA_ENV = "STEPNC_GRAPH_CA_BUNDLE"
+RETRIES_ENV = "STEPNC_GRAPH_RETRIES"
+TIMEOUT_ENV = "STEPNC_GRAPH_TIMEOUT"
+#: seconds to wait for the whole answer to one request (a load's final swap of a large program
+#: takes tens of seconds on Oxigraph: 21 s for 700k quads)
+DEFAULT_TIMEOUT = 120.0
+#: seconds to wait for a connection
+CONNECT_TIMEOUT = 10.0
+#: bytes of N-Triples per Graph Store Protocol request of a load
+BATCH_BYTES = 8 << 20
+#: a staging graph older than this was left by an interrupted load and is dropped
+STALE_STAGING_SECONDS = 24 * 3600
+#: the name of a staging graph of :meth:`RemoteStore.replace_graph`: its time, then a random id
+_STAGING_NAME = re.compile(re.escape(STAGING) + r"([0-9]+):[0-9a-f]{32}")
+_TRANSIENT = {429, 502, 503, 504}
+_RESULTS_JSON = "application/sparql-results+json"
+_NTRIPLES = "application/n-triples"
+_TURTLE = "text/turtle"
+
+
+class RemoteError(StoreError):
+    """A request the remote store refused or could not answer (after the retries)."""
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """Where a remote store answers: the three URLs, credentials from the environment, TLS."""
+
+    query_url: str
+    update_url: str
+    store_url: str
+    headers: dict[str, str] = field(default_factory=dict, repr=False)  # repr=False: never print credentials
+    auth: tuple[str, str] | None = field(default=None, repr=False)
+    verify: bool | str = True
+    timeout: float = DEFAULT_TIMEOUT
+    retries: int = 5
+
+    @classmethod
+    def from_options(cls, base: str, query_url: str | None = None, update_url: str | None = None,
+                     store_url: str | None = None, timeout: float | None = None) -> "Endpoint":
+        """URLs from a base (Oxigraph's layout: ``BASE/query``, ``BASE/update``, ``BASE/store``)
+        or given one by one (Fuseki: ``/ds/query``, ``/ds/update``, ``/ds/data``); ``timeout``
+        (seconds) or ``$STEPNC_GRAPH_TIMEOUT`` or :data:`DEFAULT_TIMEOUT`."""
+        urls = [u for u in (base, query_url, update_url, store_url) if u]
+        for url in urls:
+            parts = urlsplit(url)
+            if parts.scheme not in ("http", "https") or not parts.netloc:
+                raise StoreError(f"endpoint {_safe(url)!r} is not an http(s) URL")
+            if parts.username or parts.password:
+                raise StoreError("an endpoint URL must not hold a user or password (they would land in shell "
+                                 f"history): set {TOKEN_ENV}, or {USER_ENV} and {PASSWORD_ENV}")
+        root = base.rstrip("/")
+        if root.endswith("/query"):  # given the query endpoint itself: its siblings
+            root = root[: -len("/query")]
+        token, user, password = os.environ.get(TOKEN_ENV), os.environ.get(USER_ENV), os.environ.get(PASSWORD_ENV)
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        retries = os.environ.get(RETRIES_ENV, "").strip()
+        ca_bundle = os.environ.get(CA_ENV)
+        if ca_bundle and not Path(ca_bundle).exists():
+            raise StoreError(f"{CA_ENV} names {ca_bundle}, which does not exist")
+        return cls(query_url or f"{root}/query", update_url or f"{root}/update", store_url or f"{root}/store",
+                   headers, (user, password or "") if user and not token else None,
+                   ca_bundle or True, timeout=_timeout(timeout), retries=int(retries) if retries.isdigit() else 5)
+
+    def secrets(self) -> list[str]:
+        """The credentials as they may appear in text: to be removed from every message."""
+        found = [v.split(" ", 1)[-1] for v in self.headers.values()]
+        if self.auth is not None:
+            user, password = self.auth
+            found += [password, base64.b64encode(f"{user}:{password}".encode()).decode()]
+        return [f for f in found if len(f) >= 4]  # a 1-3 character secret would blank ordinary words
+
+    def __str__(self) -> str:
+        return _safe(self.query_url)
+
+
+def _timeout(given: float | None) -> float:
+    """The request timeout: given, else ``$STEPNC_GRAPH_TIMEOUT``, else the default; positive."""
+    if given is None:
+        text = os.environ.get(TIMEOUT_ENV, "").strip()
+        try:
+            given = float(text) if text else DEFAULT_TIMEOUT
+        except ValueError:
+            raise StoreError(f"{TIMEOUT_ENV}={text!r}: expected a number of seconds") from None
+    if not given > 0:
+        raise StoreError(f"the endpoint timeout must be a positive number of seconds, not {given}")
+    return given
+
+
+def _safe(url: str) -> str:
+    """``url`` without user, password or query string (for messages)."""
+    parts = urlsplit(url)
+    host = parts.hostname or ""
+    return urlunsplit((parts.scheme, host + (f":{parts.port}" if parts.port else ""), parts.path, "", ""))
+
+
+def _value(term: Any) -> str:
+    return str(term.value if hasattr(term, "value") else term)
+
+
+def _batches(chunks: Iterable[Chunk], size: int) -> Iterator[tuple[str | None, bytes]]:
+    """The chunks' text in UTF-8 batches of about ``size`` bytes (chunks end at triple boundaries),
+    each with its graph: None for the main graph, a companion's name for its chunks (sent alone)."""
+    pending: list[bytes] = []
+    used = 0
+    for chunk in chunks:
+        if isinstance(chunk, Shadow):  # written by the load as quads (see Shadow)
+            continue
+        if isinstance(chunk, Companion):
+            yield chunk.graph, chunk.text.encode("utf-8")
+            continue
+        data = chunk.encode("utf-8")
+        pending.append(data)
+        used += len(data)
+        if used >= size:
+            yield None, b"".join(pending)
+            pending, used = [], 0
+    if pending:
+        yield None, b"".join(pending)
+
+
+class RemoteStore:
+    """Named graphs in a remote SPARQL 1.1 store (see the module docstring)."""
+
+    path: Path | None = None  # not a directory: code that takes checkpoints or locks skips a remote store
+    readonly = False
+    last_removal: str | None = None
+
+    def __init__(self, endpoint: Endpoint) -> None:
+        import requests
+
+        self.endpoint = endpoint
+        self._http = requests.Session()
+        self._http.headers.update(endpoint.headers)
+        self._http.auth = endpoint.auth
+        self._http.verify = endpoint.verify
+
+    def close(self) -> None:
+        self._http.close()
+
+    def __enter__(self) -> "RemoteStore":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- HTTP ---------------------------------------------------------------------
+
+    def _redact(self, text: str) -> str:
+        """``text`` without the credentials (an error body may echo the request's headers)."""
+        for secret in self.endpoint.secrets():
+            text = text.replace(secret, "***")
+        return text
+
+    def _request(self, method: str, url: str, *, idempotent: bool = True, stream: bool = False,
+                 **kwargs: Any) -> tuple[Any, bytes | None]:
+        """One HTTP request and its answer's body (None when ``stream``), retried with backoff on
+        transient failures; raises RemoteError.
+
+        A request that is not ``idempotent`` (it writes) is sent again only when the endpoint
+        cannot have carried it out: no connection was made, or it answered 429 or 503. No request
+        is sent again after the endpoint kept silent for the whole timeout."""
+        import requests
+
+        delay = 0.5
+        timeout = self.endpoint.timeout
+        for attempt in range(self.endpoint.retries + 1):
+            retry = True
+            try:
+                # verify given here: requests lets REQUESTS_CA_BUNDLE override the session's value
+                response = self._http.request(method, url, timeout=(min(CONNECT_TIMEOUT, timeout), timeout),
+                                              verify=self.endpoint.verify, stream=True, **kwargs)
+                content = None if stream and response.status_code < 400 else _content(response, timeout)
+            except requests.Timeout as e:
+                if not isinstance(e, requests.ConnectTimeout):
+                    written = "" if idempotent else "; it may have been carried out"
+                    raise RemoteError(f"{method} {_safe(url)} did not answer within {timeout:g} s (--timeout or "
+                                      f"${TIMEOUT_ENV} sets the limit){written}") from None
+                failure = f"{_safe(url)} does not answer (no connection within {min(CONNECT_TIMEOUT, timeout):g} s)"
+            except requests.exceptions.SSLError as e:
+                reason = str(e.args[0].reason if e.args and hasattr(e.args[0], "reason") else e)[:200]
+                raise RemoteError(f"{_safe(url)}: TLS failed ({reason}); ${CA_ENV} names the CA file of a private "
+                                  "PKI") from None
+            except requests.ConnectionError as e:
+                failure = f"{type(e).__name__}: {_safe(url)} does not answer"
+                retry = idempotent or _nothing_sent(e)
+            except requests.RequestException as e:
+                raise RemoteError(self._redact(f"{method} {_safe(url)} failed: {e}")) from None
+            else:
+                if response.status_code < 400:
+                    return response, content
+                body = (content or b"")[:300].decode("utf-8", "replace").strip()
+                failure = self._redact(f"{method} {_safe(url)} answered {response.status_code}: {body}")
+                retry = response.status_code in _TRANSIENT and (idempotent or response.status_code in (429, 503))
+            if not retry:
+                raise RemoteError(failure)
+            if attempt < self.endpoint.retries:
+                time.sleep(delay)
+                delay *= 2
+        raise RemoteError(f"{failure} (after {self.endpoint.retries + 1} attempts)")
+
+    def update(self, sparql: str) -> None:
+        """One SPARQL Update request (one transaction in the store)."""
+        self._request("POST", self.endpoint.update_url, idempotent=False, data=sparql.encode("utf-8"),
+                      headers={"Content-Type": "application/sparql-update"})
+
+    def _post_graph(self, graph: str, body: bytes, media_type: str = _NTRIPLES) -> None:
+        self._request("POST", self.endpoint.store_url, idempotent=False, params={"graph": graph}, data=body,
+                      headers={"Content-Type": media_type})
+
+    # -- writing --------------------------------------------------------------------
+
+    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
+                      before_commit: Callable[[Callable[[str], str]], None] | None = None,
+                      companions: Sequence[str] = ()) -> None:
+        """Upload into staging graphs, then swap them in with one SPARQL Update request. Refuses
+        what :meth:`GraphStore.replace_graph` refuses."""
+        refuse_strangers(graph, companions)
+        self._drop_stale_staging()
+        stamp = int(time.time())
+        staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
+        try:
+            for name, body in _batches(chunks, BATCH_BYTES):
+                self._post_graph(staging[name or graph], body)
+            if before_commit is not None:
+                before_commit(lambda name: staging[name])
+            # the swap: one request, so one transaction. ADD (a copy) and then dropping the
+            # staging graph in a second request is MOVE's meaning; on Oxigraph 0.5 it keeps the
+            # swap itself to a third of MOVE's time (measured: 700k quads, 21 s against 71 s)
+            self.update(" ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; ADD SILENT GRAPH <{tmp}> TO "
+                                    f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
+        except BaseException:
+            self._drop_quietly(staging.values())
+            raise
+        self._drop_quietly(staging.values())
+
+    def _drop_quietly(self, graphs: Iterable[str]) -> None:
+        """Drop staging graphs; if the server is gone, a later load drops them once stale."""
+        try:
+            self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in graphs))
+        except RemoteError:
+            pass
+
+    def _drop_stale_staging(self) -> None:
+        """Drop the staging graphs an interrupted load left (named as :data:`_STAGING_NAME`, older
+        than :data:`STALE_STAGING_SECONDS`). Never a graph that records itself as a program or a
+        link graph: no load takes a staging name now (:data:`~stepnc_graph.core.naming.RESERVED`), but
+        an older stepnc-graph let a program be loaded under one."""
+        limit = time.time() - STALE_STAGING_SECONDS
+        stale = [g for g in self._all_graphs()
+                 if (m := _STAGING_NAME.fullmatch(g)) is not None and int(m.group(1)) < limit]
+        if stale:
+            recorded = graph_layout(self)  # its records cover staging names too
+            stale = [g for g in stale if g not in recorded.programs and g not in recorded.links]
+        if stale:
+            self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in stale))
+
+    def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
+        for _, body in _batches([text], BATCH_BYTES):
+            self._post_graph(graph, body)
+
+    def add_turtle(self, graph: str, text: str) -> None:
+        self._post_graph(graph, text.encode("utf-8"), _TURTLE)
+
+    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
+        """Drop ``graph`` and its ``companions``; the endpoint manages its own storage, so
+        ``compact`` asks nothing of it. Refuses what :meth:`replace_graph` refuses."""
+        refuse_strangers(graph, companions)
+        if not self.has_graph(graph):
+            return False
+        self.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in (graph, *companions)))
+        return True
+
+    # -- reading ----------------------------------------------------------------------
+
+    def query(self, sparql: str, **options: Any) -> Any:
+        """SPARQL over the protocol; SELECT/ASK rows are pyoxigraph's, CONSTRUCT gives Triples.
+
+        The options are pyoxigraph's, in standard terms: the dataset goes as
+        ``default-graph-uri`` / ``named-graph-uri`` (the union default graph is every
+        graph named as default), ``prefixes`` as PREFIX lines, and ``substitutions`` as
+        a VALUES block opening each group the variable reaches (:mod:`stepnc_graph.store.bindings`),
+        each term written by pyoxigraph (so a value can never change the query's text).
+
+        Oxigraph parses the query first, on an empty store: a syntax error is raised as the
+        embedded store raises it, and the answer must have the form and the variables that
+        parse gives (RemoteError otherwise).
+        """
+        unknown = set(options) - {"use_default_graph_as_union", "default_graph", "named_graphs", "prefixes",
+                                  "substitutions"}
+        if unknown:
+            raise StoreError(f"query options {sorted(unknown)} are not available over the SPARQL protocol")
+        prefixes: dict[str, str] | None = options.get("prefixes")
+        substitutions: dict[Any, Any] | None = options.get("substitutions")
+        default_graph: Sequence[Any] | None = options.get("default_graph")
+        named_graphs: Sequence[Any] | None = options.get("named_graphs")
+        expected = _expected(sparql, prefixes, substitutions)
+        if substitutions:
+            bound = bind_in_groups(sparql, {v.value: str(t) for v, t in substitutions.items()})
+            try:
+                fits = expected is None or _expected(bound, prefixes, None) == expected
+            except SyntaxError:
+                fits = False
+            if not fits:
+                raise StoreError(f"parameters {', '.join(str(v) for v in substitutions)} cannot be bound inside this "
+                                 "query for a SPARQL endpoint (does the query BIND them itself?)")
+            sparql = bound
+        if prefixes:
+            sparql = "".join(f"PREFIX {p}: <{iri}>\n" for p, iri in prefixes.items()) + sparql
+        if options.get("use_default_graph_as_union") and default_graph is None:
+            default_graph = [ox.NamedNode(g) for g in self.all_graphs()]
+        form: list[tuple[str, str]] = [("query", sparql)]
+        form += [("default-graph-uri", _value(g)) for g in default_graph or ()]
+        form += [("named-graph-uri", _value(g)) for g in named_graphs or ()]
+        response, content = self._request("POST", self.endpoint.query_url, data=form,
+                                          headers={"Accept": f"{_RESULTS_JSON}, {_NTRIPLES};q=0.9"})
+        return _answer(str(self.endpoint), response.headers.get("Content-Type", ""), content or b"", expected)
+
+    def _all_graphs(self) -> list[str]:
+        rows = self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }")  # the graph names, no scan
+        return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode)]
+
+    def all_graphs(self) -> list[str]:
+        """Every named graph but staging ones."""
+        return sorted(g for g in self._all_graphs() if not g.startswith(STAGING))
+
+    def graphs(self) -> list[str]:
+        """The loaded files' graphs (and graphs `link` or users added): not the vocabulary graph or a
+        program's derived layer, as :meth:`GraphStore.graphs`."""
+        return graph_layout(self).listed()
+
+    def has_graph(self, graph: str) -> bool:
+        return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
+
+    def count(self, graph: str | None = None) -> int:
+        pattern = f"GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }}" if graph else "{ ?s ?p ?o } UNION { GRAPH ?g { ?s ?p ?o } }"
+        [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ {pattern} }}"))
+        return int(row[0].value)
+
+    def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
+        """A graph's quads (Graph Store Protocol GET); every graph's for None."""
+        for name in [graph] if graph else self.all_graphs():
+            assert name is not None
+            response, _ = self._request("GET", self.endpoint.store_url, params={"graph": name},
+                                        headers={"Accept": _NTRIPLES}, stream=True)
+            media_type = response.headers.get("Content-Type", "").split(";")[0].strip().lower()
+            if media_type != _NTRIPLES:
+                response.close()
+                raise RemoteError(f"{self.endpoint.store_url} answered {_kind(media_type)} for graph {name}, "
+                                  f"where N-Triples ({_NTRIPLES}) were expected")
+            response.raw.decode_content = True  # streamed: a large graph is never all in memory
+            g = ox.NamedNode(name)
+            with response:
+                try:
+                    for t in ox.parse(response.raw, ox.RdfFormat.N_TRIPLES):
+                        yield ox.Quad(t.subject, t.predicate, t.object, g)
+                except SyntaxError as exc:
+                    raise RemoteError(f"{self.endpoint.store_url} answered graph {name} with N-Triples that do not "
+                                      f"parse (cut short?): {exc}") from None
+
+    def local_copy(self, graphs: str | Sequence[str] | None = None) -> Any:
+        """An in-memory :class:`GraphStore` holding ``graphs`` (one, several, or every graph): for
+        work that walks a graph node by node (canonical exports, validation), which one request
+        per node would make slow. It holds the graphs in memory."""
+        from stepnc_graph.store import GraphStore
+
+        copy = GraphStore(None)
+        for name in [graphs] if isinstance(graphs, str) or graphs is None else graphs:
+            copy.oxigraph.bulk_extend(self.quads(name))
+        return copy
+
+    @property
+    def oxigraph(self) -> ox.Store:
+        raise StoreError(f"{self.endpoint} is a remote store: it has no embedded Oxigraph database")
+
+
+def _content(response: Any, timeout: float) -> bytes:
+    """The whole body of a streamed ``response``, read within ``timeout`` seconds however slowly
+    it comes (requests' own timeout bounds each read, not the whole)."""
+    import requests
+
+    deadline = time.monotonic() + timeout
+    parts = []
+    with response:
+        for part in response.iter_content(1 << 16):
+            parts.append(part)
+            if time.monotonic() > deadline:
+                raise requests.ReadTimeout("the answer did not end in time")
+    return b"".join(parts)
+
+
+def _nothing_sent(error: Exception) -> bool:
+    """Whether a connection error happened before the request was sent (no connection made)."""
+    from urllib3.exceptions import NewConnectionError
+
+    reason = getattr(error.args[0], "reason", None) if error.args else None
+    return isinstance(reason, NewConnectionError) or "NewConnectionError" in str(error)
+
+
+#: what a query's answer must be: "boolean", "graph", or the SELECT's variables
+Expected = str | tuple[str, ...]
+
+
+def _expected(sparql: str, prefixes: dict[str, str] | None, substitutions: dict[Any, Any] | None) -> Expected | None:
+    """What answer ``sparql`` asks for, as Oxigraph parses it (on an empty store, where nothing is
+    found); None for a query with a SERVICE clause (which must not run here). Raises the
+    SyntaxError or RuntimeError the embedded store raises."""
+    if outbound_keyword(sparql) is not None:
+        return None
+    result = ox.Store().query(sparql, prefixes=prefixes, substitutions=substitutions)
+    if isinstance(result, ox.QueryBoolean):
+        return "boolean"
+    if isinstance(result, ox.QueryTriples):
+        return "graph"
+    return tuple(v.value for v in result.variables)
+
+
+def _kind(media_type: str) -> str:
+    """A media type as words for a message."""
+    if media_type in ("text/html", "application/xhtml+xml"):
+        return "an HTML page (a login page or a proxy's error page?)"
+    return media_type or "a body without a Content-Type"
+
+
+def _answer(endpoint: str, content_type: str, content: bytes, expected: Expected | None) -> Any:
+    """A query's answer (pyoxigraph results, or a list of triples), checked against what the
+    query asks for; RemoteError naming ``endpoint`` and what was expected otherwise."""
+    media_type = content_type.split(";")[0].strip().lower()
+    wanted = ("RDF (N-Triples)" if expected == "graph" else "a boolean" if expected == "boolean" else
+              f"SPARQL results with {' '.join('?' + v for v in expected)}" if expected is not None else "SPARQL results")
+    rdf = ox.RdfFormat.from_media_type(media_type)
+    results = {_RESULTS_JSON: ox.QueryResultsFormat.JSON,
+               "application/sparql-results+xml": ox.QueryResultsFormat.XML}.get(media_type)
+    if (expected == "graph" and rdf is None) or (expected != "graph" and results is None and rdf is None):
+        raise RemoteError(f"{endpoint} answered {_kind(media_type)} where {wanted} were expected")
+    try:
+        if rdf is not None:
+            if expected not in (None, "graph"):
+                raise RemoteError(f"{endpoint} answered RDF ({media_type}) where {wanted} were expected")
+            return list(ox.parse(content, rdf))
+        assert results is not None
+        parsed = ox.parse_query_results(content, results)
+        if isinstance(parsed, ox.QuerySolutions):
+            got: Expected = tuple(v.value for v in parsed.variables)
+            parsed.serialize(format=ox.QueryResultsFormat.TSV)  # reads every row: a cut document fails here
+        else:
+            got = "boolean"
+    except SyntaxError as exc:
+        raise RemoteError(f"{endpoint} answered {media_type} that does not parse (cut short?): {exc}") from None
+    if expected is not None and (got == "boolean") != (expected == "boolean"):
+        raise RemoteError(f"{endpoint} answered {'a boolean' if got == 'boolean' else 'rows'} where {wanted} "
+                          f"were expected")
+    if expected is not None and got != "boolean" and set(got) != set(expected):
+        raise RemoteError(f"{endpoint} answered with the variables {' '.join('?' + v for v in got) or '(none)'} "
+                          f"where {wanted} were expected")
+    return ox.parse_query_results(content, results)
+
+
+def open_remote(base: str | None = None, query_url: str | None = None, update_url: str | None = None,
+                store_url: str | None = None, timeout: float | None = None) -> RemoteStore:
+    """The remote store at ``base`` (default ``$STEPNC_GRAPH_ENDPOINT``), checked to answer;
+    ``timeout`` is the seconds one request may take (default ``$STEPNC_GRAPH_TIMEOUT``, else 120)."""
+    base = base or os.environ.get(ENDPOINT_ENV) or query_url
+    if not base:
+        raise StoreError(f"no endpoint: give --endpoint URL or set {ENDPOINT_ENV}")
+    store = RemoteStore(Endpoint.from_options(base, query_url, update_url, store_url, timeout))
+    store.query("ASK { ?s ?p ?o }")  # fail now, with a clear message, if it does not answer
+    return store

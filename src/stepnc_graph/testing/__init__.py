@@ -1,0 +1,1 @@
+"""Harnesses for tests and benchmarks: random programs, damaged inputs (fuzzing)."""

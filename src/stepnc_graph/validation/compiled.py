@@ -1,0 +1,147 @@
+"""The shipped shapes' checks, compiled once by ``stepnc-graph ontology build``.
+
+Compiling the shapes (parsing about 0.9 MB of Turtle into a
+:class:`~.shapes.ShapesGraph`, then every constraint into a SPARQL query) took
+about 0.23 s -- most of ``validate``'s time on a small program. The shipped
+shapes change only when the project is rebuilt, so the build writes their
+checks to ``shapes/compiled-checks.json`` (plain JSON: safe to read, no pickle),
+with a SHA-256 over the shape files' names and contents (line ends normalised, as for the EXPRESS). At run time the file is
+used only when that digest matches the files being validated with; otherwise
+the shapes are compiled in the process (with a :class:`CompiledShapesWarning`
+when the shipped files themselves changed since the build, never silently).
+
+The shapes graph itself (messages, labels, ISO clauses) is read only when a
+result needs describing: a conforming program never parses it.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from stepnc_graph.core.errors import StepncGraphWarning
+from stepnc_graph.core.resources import sources_digest
+from stepnc_graph.validation.engine import Check, Compiler
+from stepnc_graph.validation.shapes import ShapesGraph
+
+FORMAT = 5  # 2: each check names the files that describe its results; 3: its argument and what implies it;
+# 4: "excludes" null for a check that always runs (was a flag "multi_typed_only" beside it);
+# 5: queries with placeholders for the data's hierarchy, the support files' hierarchy beside the checks,
+# each check's target classes and component arguments
+CACHE_FILE = "compiled-checks.json"
+#: the shipped file whose triples are part of the data graph (class hierarchy, enumeration items' types)
+SUPPORT_FILE = "support.ttl"
+
+Hierarchy = tuple[dict[str, set[str]], dict[str, set[str]]]
+
+
+class CompiledShapesWarning(StepncGraphWarning):
+    """``shapes/compiled-checks.json`` is stale or unreadable: the shapes were compiled instead."""
+
+
+class StaleChecks(Exception):
+    """A compiled-checks file that does not fit the shape files (digest, format) or does not decode."""
+
+
+def digest(named_texts: Sequence[tuple[str, bytes]]) -> str:
+    """The shape files' digest, as the compiled model's of the EXPRESS (names, bytes, in order)."""
+    return sources_digest(named_texts)
+
+
+def compile_texts(named_texts: Sequence[tuple[str, str]],
+                  data_positions: frozenset[int] = frozenset()) -> tuple[ShapesGraph, list[Check]]:
+    """The shapes graph of Turtle documents, in order, and its checks; the documents at
+    ``data_positions`` belong to the data graph (``support.ttl``)."""
+    from stepnc_graph.mapping.plans import iso14649_plans
+    from stepnc_graph.validation.implied import mark
+
+    graph = ShapesGraph()
+    for position, (name, text) in enumerate(named_texts):
+        graph.add_text(text, name, position, data=position in data_positions)
+    return graph, mark(Compiler(graph).checks(), graph, iso14649_plans())
+
+
+def hierarchy_of(graph: ShapesGraph) -> Hierarchy:
+    """The data files' subclasses and typed individuals (IRIs), class -> nodes."""
+    return ({k: set(v) for k, v in graph.subclasses.items()},
+            {k: {i for i in v if i.startswith("<")} for k, v in graph.instances.items() if v})
+
+
+class _ClassSets:
+    """Class sets (a target's subclasses) numbered in order of first use: a few hundred distinct
+    sets are shared by thousands of checks, so the file lists each once and the reader builds
+    each frozenset once."""
+
+    def __init__(self) -> None:
+        self.index: dict[frozenset[str], int] = {}
+
+    def ref(self, classes: frozenset[str]) -> int:
+        return self.index.setdefault(classes, len(self.index))
+
+    def table(self) -> list[list[str]]:
+        return [sorted(c) for c in self.index]
+
+
+def _encode(check: Check, sets: _ClassSets) -> dict[str, Any]:
+    return {
+        "shape": check.shape, "constraint": check.constraint, "component": check.component, "path": check.path,
+        "path_term": check.path_term, "severity": check.severity, "query": check.query,
+        "classes": sets.ref(check.classes), "closures": [sets.ref(c) for c in check.closures],
+        "other_targets": list(check.other_targets), "parent": check.parent, "sparql_node": check.sparql_node,
+        "files": list(check.files), "argument": check.argument, "implied": check.implied,
+        "excludes": None if check.excludes is None else sets.ref(check.excludes),
+        "target_classes": list(check.target_classes), "args": [list(a) for a in check.args],
+        "multiplicity": check.multiplicity,
+    }
+
+
+def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
+    return Check(d["shape"], d["constraint"], d["component"], d["path"], d["path_term"], d["severity"], d["query"],
+                 sets[d["classes"]], tuple(sets[i] for i in d["closures"]), tuple(d["other_targets"]),
+                 d["parent"], d["sparql_node"], tuple(d["files"]), d["argument"], d["implied"],
+                 None if d["excludes"] is None else sets[d["excludes"]], tuple(d["target_classes"]),
+                 tuple((a[0], a[1]) for a in d["args"]), d["multiplicity"])
+
+
+def dumps(names: Sequence[str], value: str, checks: Sequence[Check], hierarchy: Hierarchy) -> str:
+    """The compiled-checks file: byte-stable (one check per line, keys sorted) for ``build --check``."""
+    sets = _ClassSets()
+    lines = [json.dumps(_encode(c, sets), sort_keys=True, ensure_ascii=False) for c in checks]
+    head = json.dumps({"format": FORMAT, "files": list(names), "shapes_sha256": value}, sort_keys=True)
+    table = ",\n".join(json.dumps(c, ensure_ascii=False) for c in sets.table())
+    subclasses, individuals = hierarchy
+    tree = json.dumps({k: sorted(v) for k, v in sorted(subclasses.items())}, ensure_ascii=False)
+    typed = json.dumps({k: sorted(v) for k, v in sorted(individuals.items())}, ensure_ascii=False)
+    return ("{\"header\": " + head + ",\n\"subclasses\": " + tree + ",\n\"individuals\": " + typed
+            + ",\n\"class_sets\": [\n" + table + "\n],\n\"checks\": [\n" + ",\n".join(lines) + "\n]}\n")
+
+
+def loads(text: str, value: str) -> tuple[tuple[Check, ...], Hierarchy]:
+    """The checks of a compiled-checks file written for shape files of digest ``value``, and the
+    support files' hierarchy."""
+    try:
+        data = json.loads(text)
+        header = data["header"]
+        if header.get("format") != FORMAT:
+            raise StaleChecks(f"it has format {header.get('format')!r}, this stepnc-graph reads format {FORMAT}")
+        if header.get("shapes_sha256") != value:
+            raise StaleChecks("the shape files changed since it was built")
+        sets = [frozenset(c) for c in data["class_sets"]]
+        hierarchy = ({k: set(v) for k, v in data["subclasses"].items()},
+                     {k: set(v) for k, v in data["individuals"].items()})
+        return tuple(_decode(d, sets) for d in data["checks"]), hierarchy
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
+        raise StaleChecks(f"it does not decode ({type(exc).__name__}: {exc})") from exc
+
+
+def relative_names(files: Sequence[Path], directory: Path) -> list[str] | None:
+    """The files' names relative to ``directory`` (``process/turning.ttl``); None if one is outside it."""
+    names = []
+    for f in files:
+        try:
+            names.append(f.resolve().relative_to(directory.resolve()).as_posix())
+        except ValueError:
+            return None
+    return names
