@@ -12,8 +12,10 @@ and the critical (most used) tool.
 
 The picture is written by our own small SVG writer (no plotting dependency; networkx's drawing
 needs matplotlib and knows nothing of lanes): setups are lanes, workingsteps boxes in execution
-order coloured by tool, tool changes marked, rough -> finish pairs of a feature joined by arcs
-(red and dashed when the finish comes first). PNG needs the ``png`` extra (cairosvg).
+order coloured by tool, in rows of a readable width, tool changes marked, rough -> finish pairs of
+a feature joined by arcs (red and dashed when the finish comes first); a large plan is drawn as
+runs of steps with one setup and one tool, in pages (:class:`PlanPicture`). PNG needs the ``png``
+extra (cairosvg).
 """
 
 from __future__ import annotations
@@ -26,13 +28,14 @@ from dataclasses import dataclass, field
 from html import escape
 from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import pyoxigraph as ox
 
 from stepnc_graph.naming import VOCABULARY_GRAPH, derived_graph_iri
 from stepnc_graph.query import PREFIXES
 
 if TYPE_CHECKING:
+    import networkx as nx
+
     from stepnc_graph.store import GraphStore
 
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#b07aa1", "#76b7b2", "#edc948", "#ff9da7", "#9c755f", "#bab0ac",
@@ -284,6 +287,8 @@ class Plan:
 
     def graphml(self) -> str:
         """GraphML for other tools (yEd, Gephi, Cytoscape): every attribute a string or number."""
+        import networkx as nx
+
         return "\n".join(nx.generate_graphml(self.graph, named_key_ids=True)) + "\n"
 
     def svg(self, page: int = 1) -> str:
@@ -387,6 +392,8 @@ def _network(program: str, steps: list[Step], info: dict[str, Thing], edges: lis
              elements: list[tuple[str, str, int]]) -> nx.MultiDiGraph:
     """The plan as a networkx graph: project -> workplans -> workingsteps in order, with their features,
     operations, tools, technologies and setups."""
+    import networkx as nx  # only here: importing it takes 0.2-0.5 s, which a summary or a picture need not pay
+
     g: nx.MultiDiGraph = nx.MultiDiGraph(program=program)
 
     def node(iri: str, kind: str) -> None:
