@@ -99,6 +99,38 @@ def test_execution_order_of_the_example(example: tuple[GraphStore, str]) -> None
     assert ("i34", "i42") in features and len(features) == 8
 
 
+def test_steps_carry_their_program_workingstep_and_operation() -> None:
+    """sga:program, sga:workingstepId, sga:operationId and sga:operationClass on each step are what
+    the file's graph says of the step's workingstep and its operation (read there independently)."""
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [SLEEVE])
+    g = r.graph
+    on_steps = rows(store, g, "SELECT ?o ?p ?w ?n ?c WHERE { ?s sga:order ?o ; sga:program ?p ; "
+                              "sga:workingstepId ?w ; sga:operationId ?n ; sga:operationClass ?c } ORDER BY ?o")
+    steps = rows(store, g, "SELECT ?o ?ws WHERE { ?s sga:order ?o ; sga:executes ?ws } ORDER BY ?o")
+    assert len(on_steps) == len(steps) == 13
+    program = store.query(PREFIXES + f"SELECT ?ws ?w ?n ?c WHERE {{ GRAPH <{g}> {{ ?ws p21:id ?w ; "
+                                     "attr:its_operation|stepnc:machining_workingstep.its_operation|"
+                                     "stepnc:turning_workingstep.its_operation ?op . ?op p21:id ?n ; a ?c } }")
+    truth = {r["ws"].value.removeprefix(g + "/"): (r["w"].value, r["n"].value, r["c"].value) for r in program}
+    for (order, ws), (order2, graph, w, n, c) in zip(steps, on_steps, strict=True):
+        assert order == order2 and graph == g and truth[ws] == (w, n, c)
+
+
+def test_class_counts_are_the_instances_the_graph_types() -> None:
+    from collections import Counter
+
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [EXAMPLE])
+    counts = rows(store, r.graph, "SELECT ?c ?n ?g WHERE { ?x a sga:ClassCount ; sga:countedClass ?c ; "
+                                  "sga:instanceCount ?n ; sga:countedIn ?g }")
+    typed = Counter(q.object.value for q in store.quads_for_pattern(
+        None, ox.NamedNode("http://www.w3.org/1999/02/22-rdf-syntax-ns#type"), None, ox.NamedNode(r.graph))
+        if isinstance(q.subject, ox.NamedNode))
+    assert {c: int(n) for c, n, _ in counts} == dict(typed) and {g for *_, g in counts} == {r.graph}
+    assert typed[STEPNC_NS + "machining_workingstep"] == 8
+
+
 def test_execution_order_through_every_program_structure() -> None:
     store = sg.open_store(memory=True)
     [r] = sg.load(store, [STRUCTURES])

@@ -1074,3 +1074,58 @@ def test_hostile_documents_never_crash_connect_read_or_hang(tmp_path: Path, proc
     finally:
         listener.close()
         fifo.close()
+
+
+# -- graphs the Part 21 writer could not write back (found by the fuzz harness) ------------------
+
+DAMAGED = ROOT / "examples" / "shaft_damaged.stp"
+
+
+def _damaged_doc() -> Any:
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [DAMAGED], lenient=True)
+    return json.loads(sg.export(store, "jsonld", r.graph))
+
+
+def _two_nodes_one_id(doc: Any) -> None:
+    doc["@graph"].append({**node(doc, "i3"), "@id": "i3-copy"})
+
+
+def _two_ids(doc: Any) -> None:
+    node(doc, "i3")["p21:id"] = [3, 3003]
+
+
+def _raw_text(value: Any) -> Any:
+    def edit(doc: Any) -> None:
+        node(doc, "i34")["p21:rawText"] = value
+    return edit
+
+
+@pytest.mark.parametrize("edit, message", [
+    (_two_nodes_one_id, r"i3> and .*i3-copy> both have p21:id 3"),
+    (_two_ids, r"i3> has 2 p21:id values"),
+    (_raw_text("this is not Part 21"), r"i34> \(#34\): its p21:rawText is not one Part 21 instance"),
+    (_raw_text("#34=A(1);\nENDSEC;\nDATA;\n#35=B(2);"), r"i34> \(#34\): its p21:rawText is not one Part 21 instance"),
+    (_raw_text("#99=VENDOR_WORKINGSTEP('X');"), r"i34> has p21:id 34 but its p21:rawText defines #99"),
+    (_raw_text({"@id": "https://example.com/text"}), r"i34> \(#34\) is a p21:RawInstance without one text literal"),
+], ids=["two-nodes-one-id", "two-ids", "not-part21", "two-instances", "other-id", "not-a-literal"])
+def test_a_graph_whose_part21_would_not_read_back_is_refused(edit: Any, message: str, tmp_path: Path) -> None:
+    """Before: loaded, and its export did not parse (or the instance count broke); now refused."""
+    doc = _damaged_doc()
+    edit(doc)
+    path = tmp_path / "edited.jsonld"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    store = sg.open_store(memory=True)
+    with pytest.raises(JsonLdError, match="cannot be written back as Part 21: .*" + message):
+        sg.load(store, [path], base_iri="https://example.com/edited")
+    assert store.graphs() == []
+
+
+def test_the_damaged_example_still_goes_through_json_ld_and_back(tmp_path: Path) -> None:
+    """The checks above refuse nothing a lenient load of a real damaged file writes."""
+    path = tmp_path / "damaged.jsonld"
+    path.write_text(json.dumps(_damaged_doc()), encoding="utf-8")
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path])
+    assert r.instances > 0 and r.raw > 0
+    assert len(list(sg.part21.read_text(sg.export(store, "p21", r.graph).decode("utf-8")).instances())) > 0

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 import stepnc_graph as sg
 from stepnc_graph.cli import main
-from stepnc_graph.workplan.plan import Plan, PlanError, build_plan
+from stepnc_graph.workplan.plan import Plan, PlanError, PlanPicture, build_plan
 from stepnc_graph.store import GraphStore
 
 from conftest import FIXTURES, ROOT
@@ -79,7 +79,8 @@ def test_the_picture_holds_every_workingstep_and_tool_change() -> None:
                    for g in groups.get("tool-change", [])]
         assert changes == [(c.order, c.before.ref, c.after.ref) for c in plan.tool_changes()]
         lanes = [g.get("data-setup") for g in groups.get("lane", [])]
-        assert lanes == list(plan.workingsteps_per_setup())
+        rows = -(-len(plan.steps) // PlanPicture(plan).row)  # rows of at most ROW boxes, each with every setup's lane
+        assert lanes == list(plan.workingsteps_per_setup()) * rows
         arcs = [p for p in root.iter(f"{SVG}path") if "rough-finish" in (p.get("class") or "")]
         assert len(arcs) == len(plan.rough_finish_pairs())
         assert sum("precedence" in (p.get("class") or "") for p in arcs) == len(plan.precedence_violations())
@@ -129,3 +130,62 @@ def test_png_needs_the_extra_or_writes_a_png(tmp_path: Path) -> None:
         assert res.exit_code == 2 and "stepnc-graph[png]" in res.stderr
         return
     assert res.exit_code == 0 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_large_plan_is_drawn_in_pages_of_readable_width(tmp_path: Path) -> None:
+    """Beyond PlanPicture.DETAIL steps the picture shows runs of steps with one setup and one tool,
+    in rows of at most BLOCK_ROW, PAGE_BLOCKS a page: every step on exactly one page, in order, every
+    tool change marked, every precedence error's finishing step in a marked run (was: one row,
+    134 px a workingstep -- 496,526 px for a 200k-instance program)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    from generate import replicate
+
+    path = tmp_path / "sleeves.stp"
+    replicate(SLEEVE, 115 * 40, path)  # 40 copies of the sleeve: 520 steps, 240 tool changes
+    store = sg.open_store(memory=True)
+    sg.load(store, [path])
+    plan = build_plan(store, network=False)
+    assert len(plan.steps) == 520 > PlanPicture.DETAIL
+    seen: list[int] = []
+    changes: list[int] = []
+    late: list[int] = []
+    for page in range(1, plan.pages() + 1):
+        root = ET.fromstring(plan.svg(page))
+        assert float(root.get("width", "0")) <= 1600
+        assert not [g for g in root.iter(f"{SVG}g") if g.get("class") == "workingstep"]
+        for g in root.iter(f"{SVG}g"):
+            kind = g.get("class", "")
+            if kind.startswith("block"):
+                first, last = int(g.get("data-first", 0)), int(g.get("data-last", 0))
+                run = [s for s in plan.steps if first <= s.order <= last]
+                assert int(g.get("data-steps", 0)) == len(run) and {
+                    (s.setup.label if s.setup else "", s.tool.ref if s.tool else "") for s in run} == {
+                    (g.get("data-setup"), g.get("data-tool"))}
+                seen += [s.order for s in run]
+                late += [s.order for s in run] if "precedence" in kind else []
+            elif kind == "tool-change":
+                changes.append(int(g.get("data-order", 0)))
+    assert plan.pages() == 3 and seen == [s.order for s in plan.steps]
+    assert changes == [c.order for c in plan.tool_changes()] and len(changes) == 240  # 6 a copy
+    # each copy is a project: its first tool is loaded, not changed -- as the library counts
+    assert changes == [r["order"] for r in sg.query(store, "tool-changes").rows]
+    assert {p.finish for p in plan.precedence_violations()} <= set(late)
+    with pytest.raises(PlanError, match="3 page"):
+        plan.svg(4)
+    runner = CliRunner()
+    res = runner.invoke(main, ["plan", str(path), "--svg", str(tmp_path / "p2.svg"), "--page", "2"])
+    assert res.exit_code == 0 and "page 2 of 3" in res.stderr
+    assert ET.parse(tmp_path / "p2.svg").getroot().tag == f"{SVG}svg"
+    res = runner.invoke(main, ["plan", str(path), "--svg", str(tmp_path / "p9.svg"), "--page", "9"])
+    assert res.exit_code == 2 and "no page 9" in res.stderr
+
+
+def test_a_plan_without_its_graph_says_so() -> None:
+    store = sg.open_store(memory=True)
+    sg.load(store, [EXAMPLE])
+    plan = build_plan(store, network=False)
+    assert [s.order for s in plan.steps] == list(range(1, 9)) and plan.tool_changes()
+    with pytest.raises(PlanError, match="network=True"):
+        plan.graph  # noqa: B018

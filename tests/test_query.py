@@ -10,6 +10,7 @@ tests/test_query.py -k expected`` and review the diff.
 from __future__ import annotations
 
 import csv
+import importlib
 import io
 import json
 import os
@@ -114,6 +115,40 @@ def test_queries_judged_vocabulary_free_give_the_same_rows_without_it(name: str,
     assert bare.count(VOCABULARY_GRAPH) == 0 and not execute(bare, query).warnings
     ensure_vocabulary(store)
     assert execute(store, query).serialize("csv") == without
+
+
+@pytest.fixture(scope="module")
+def linked_store(store: GraphStore) -> GraphStore:
+    """The programs, their derived layers, the vocabulary and a PLM link graph: every kind of graph."""
+    from stepnc_graph.vocabulary import ensure_vocabulary
+
+    s = sg.open_store(memory=True)
+    s.oxigraph.extend(store.oxigraph.quads_for_pattern(None, None, None, None))
+    ensure_vocabulary(s)
+    sg.link(s, ROOT / "examples" / "shaft_plm_links.csv", SHAFT)
+    return s
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_library_queries_need_no_list_of_named_graphs(name: str, linked_store: GraphStore,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Library queries over the whole store run with the store's own named graphs (query.dataset: a
+    GRAPH pattern over a list of graphs costs a look-up per graph and row); their rows must be those
+    of the documented dataset, where GRAPH ?program reaches the files' graphs only -- also beside
+    derived layers, the vocabulary and a link graph."""
+    q = importlib.import_module("stepnc_graph.querying.query")  # the module: sg.query is the function
+    own = sg.query(linked_store, name).serialize("json")
+    listed = q.dataset
+    monkeypatch.setattr(q, "dataset", lambda store, graph, library=False: listed(store, graph))
+    assert sg.query(linked_store, name).serialize("json") == own
+
+
+def test_the_library_gets_the_stores_own_named_graphs(store: GraphStore) -> None:
+    from stepnc_graph.querying.query import dataset
+
+    assert dataset(store, None, library=True) == {"use_default_graph_as_union": True}
+    assert [g.value for g in dataset(store, None)["named_graphs"]] == store.graphs()  # other queries: files only
+    assert dataset(store, SHAFT, library=True) == dataset(store, SHAFT)  # one program: its graph
 
 
 def test_user_queries_always_get_the_vocabulary(tmp_path: Path) -> None:
@@ -318,6 +353,21 @@ def test_warnings_for_a_store_without_vocabulary_or_layer(tmp_path: Path) -> Non
     result = sg.query(s, "tool-changes")
     assert any("vocabulary graph is missing" in w for w in result.warnings)
     assert any("no derived layer" in w for w in result.warnings)
+
+
+def test_warning_for_a_layer_of_an_older_version(tmp_path: Path) -> None:
+    """A layer written before the steps carried their program (LAYER_VERSION 2) leaves the
+    row-per-step queries without those programs' rows: the query says so."""
+    from stepnc_graph.core.naming import ANALYSIS_NS
+
+    s = sg.open_store(tmp_path / "store")
+    [r] = sg.load(s, [ROOT / PROGRAMS[0]])
+    assert not sg.query(s, "tool-changes").warnings
+    layer = ox.NamedNode(r.graph + "/derived")
+    s.oxigraph.remove_graph(layer)
+    s.oxigraph.add(ox.Quad(layer, ox.NamedNode(ANALYSIS_NS + "layerOf"), ox.NamedNode(r.graph), layer))
+    assert any("from an older stepnc-graph" in w for w in sg.query(s, "tool-changes").warnings)
+    assert any("from an older stepnc-graph" in w for w in sg.query(s, "tool-changes", graph=r.graph).warnings)
 
 
 def test_html_reference_helps_an_analyst() -> None:

@@ -41,10 +41,13 @@ def _fail(message: str) -> None:
                    "marked, rough/finish pairs joined.")
 @click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="The picture as PNG (needs: pip install 'stepnc-graph[png]').")
+@click.option("--page", type=click.IntRange(min=1), default=1, show_default=True,
+              help="The page of the picture: a plan of more than 48 workingsteps is drawn as runs of steps with "
+                   "one setup and one tool, 120 runs a page.")
 @click.option("--lenient", is_flag=True, help="Load PROGRAM leniently.")
 @reports_errors
 def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote: RemoteOptions, graph: str | None,
-             fmt: str, graphml: Path | None, svg: Path | None, png: Path | None, lenient: bool) -> None:
+             fmt: str, graphml: Path | None, svg: Path | None, png: Path | None, page: int, lenient: bool) -> None:
     """The workplan of PROGRAM (a Part 21 file) or of a program in the store.
 
     Prints the execution order by setup, the tool changes, precedence errors
@@ -58,10 +61,14 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
         _fail(f"{program}: no such program file")
     with open_programs([program] if program is not None else [], store_path, memory, remote, lenient) as store:
         try:
-            plan = build_plan(store, graph)
+            # the networkx graph only for what shows it (GraphML, the JSON summary's counts)
+            plan = build_plan(store, graph, network=bool(graphml) or fmt == "json")
         except PlanError as exc:
             _fail(str(exc))
-    picture = plan.svg() if (svg or png) else ""
+    try:
+        picture = plan.svg(page) if (svg or png) else ""
+    except PlanError as exc:
+        _fail(str(exc))
     try:
         if graphml:
             graphml.write_text(plan.graphml(), encoding="utf-8")
@@ -80,10 +87,15 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     for path in (graphml, svg, png):
         if path:
             err.print(f"wrote {escape(str(path))}")
+    if (svg or png) and plan.pages() > 1:
+        err.print(f"the picture is page {page} of {plan.pages()} (runs of steps with one setup and one tool); "
+                  "--page N shows another")
     sys.exit(EXIT_OK)
 
 
 def _print_summary(plan: object) -> None:
+    """The summary as text: a few prints of many lines each (rich costs some 0.1 ms a print, and a
+    program of 100k instances has 9,000 steps)."""
     from stepnc_graph.workplan.plan import Plan
 
     assert isinstance(plan, Plan)
@@ -93,16 +105,20 @@ def _print_summary(plan: object) -> None:
     changed = {c.order for c in changes}
     for setup, steps in plan.workingsteps_per_setup().items():
         out.print(f"  [bold]{escape(setup or '(no setup)')}[/]", markup=True, highlight=False)
+        lines = []
         for s in steps:
             mark = "T" if s.order in changed else " "
             tool = f"{s.tool.label} {s.tool.ref}" if s.tool else "-"
-            out.print(f"   {mark} {s.order:>4}. {s.workingstep.label} {s.workingstep.ref}  [{s.kind or '-'}]  "
-                      f"tool {tool}", markup=False, highlight=False)
-    for p in plan.precedence_violations():
-        out.print(f"  [red]precedence:[/] {escape(p.feature.label)} {p.feature.ref}: finishing step {p.finish} runs "
-                  f"before roughing step {p.rough}", markup=True, highlight=False)
-    for tool, setups in plan.shared_tools().items():
-        out.print(f"  shared tool {tool}: {', '.join(setups)}", markup=False, highlight=False)
+            lines.append(f"   {mark} {s.order:>4}. {s.workingstep.label} {s.workingstep.ref}  [{s.kind or '-'}]  "
+                         f"tool {tool}")
+        out.print("\n".join(lines), markup=False, highlight=False)
+    late = [f"  [red]precedence:[/] {escape(p.feature.label)} {escape(p.feature.ref)}: finishing step {p.finish} runs "
+            f"before roughing step {p.rough}" for p in plan.precedence_violations()]
+    shared = [f"  shared tool {tool}: {', '.join(setups)}" for tool, setups in plan.shared_tools().items()]
+    if late:
+        out.print("\n".join(late), markup=True, highlight=False)
+    if shared:
+        out.print("\n".join(shared), markup=False, highlight=False)
     critical = plan.critical_tool()
     if critical:
         out.print(f"  critical tool: {critical[0].label} {critical[0].ref} ({critical[1]} workingsteps)",

@@ -199,6 +199,11 @@ def execution_step_iri(graph_iri: str, index: int) -> str:
     return f"{derived_graph_iri(graph_iri)}/step{index}"
 
 
+def class_count_iri(graph_iri: str, index: int) -> str:
+    """The ``index``-th (1-based) count of instances per class of a file, in its derived layer."""
+    return f"{derived_graph_iri(graph_iri)}/count{index}"
+
+
 def section_iri(graph_iri: str, index: int) -> str:
     """The ``index``-th (1-based) DATA section of a file that has several."""
     return f"{instance_prefix(graph_iri)}section{index}"

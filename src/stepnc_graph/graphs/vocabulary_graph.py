@@ -87,6 +87,10 @@ ANALYSIS_CLASSES: tuple[AnalysisClass, ...] = (
         "One place in a program's flattened execution order (derived layer): the workingstep it executes, "
         "its 1-based order, the innermost workplan and the setup in force. A workingstep used twice has two "
         "steps."),
+    AnalysisClass(
+        "ClassCount", "class count", (),
+        "How many instances of one class a loaded file holds (derived layer): the program, the class and the "
+        "count, written at load so that a profile of the program need not read every instance."),
 )
 
 ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
@@ -107,6 +111,21 @@ ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
     AnalysisProperty("toolBefore", "object", "ExecutionStep",
                      "The tool of the nearest earlier step that has one: the tool in the spindle when this step "
                      "starts. A step whose sga:tool differs from it is a tool change."),
+    AnalysisProperty("program", "object", "ExecutionStep",
+                     "The loaded file's graph (the program) the step belongs to: the graph of the workingstep it "
+                     "executes, stated on the step so that a query reads it in one scan."),
+    AnalysisProperty("workingstepId", "data", "ExecutionStep",
+                     "The Part 21 #id (p21:id) of the workingstep the step executes."),
+    AnalysisProperty("operationId", "data", "ExecutionStep",
+                     "The Part 21 #id (p21:id) of the operation of the workingstep the step executes."),
+    AnalysisProperty("operationClass", "object", "ExecutionStep",
+                     "The class of the operation of the workingstep the step executes, as the program's graph "
+                     "types it (its own entity, not the superclasses the derived layer adds)."),
+    AnalysisProperty("countedIn", "object", "ClassCount", "The loaded file's graph whose instances are counted."),
+    AnalysisProperty("countedClass", "object", "ClassCount", "The class a class count counts the instances of."),
+    AnalysisProperty("instanceCount", "data", "ClassCount",
+                     "How many instances the file's graph types with the counted class (named instances, not "
+                     "typed values; instances of its subclasses not counted)."),
     AnalysisProperty("feature", "object", None,
                      "A manufacturing feature a workingstep machines: its_feature of a machining_workingstep, "
                      "each member of its_features of a turning_workingstep."),
@@ -114,6 +133,9 @@ ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
                      "1-based position of an rdf:List cell in its list (derived for the lists of ISO 14649 "
                      "process attributes, not for geometry)."),
     AnalysisProperty("layerOf", "object", None, "The loaded file's graph a derived layer belongs to."),
+    AnalysisProperty("layerVersion", "data", None,
+                     "The format of a derived layer: the version of what stepnc-graph derives (queries warn about "
+                     "a layer of another version: load the file again)."),
     AnalysisProperty("vocabularyDigest", "data", None,
                      "SHA-256 of the ontology files the vocabulary graph was loaded from; the loader rewrites "
                      "the graph when it differs from the shipped files."),

@@ -22,7 +22,19 @@ same atomic load, replaced and removed with the file:
   ``sga:order``, ``sga:executes``, ``sga:workplan``, ``sga:setup``,
   ``sga:next``, ``sga:tool`` and ``sga:toolBefore`` (so a tool change is a
   step whose two differ); and ``sga:feature`` from each workingstep to the
-  features it machines.
+  features it machines;
+* **what a row per step shows** -- on each step its program
+  (``sga:program``), the #id of its workingstep (``sga:workingstepId``) and
+  the #id and class of that workingstep's operation (``sga:operationId``,
+  ``sga:operationClass``). The data graph holds them too, but reading them
+  there is one index look-up per step (or, for the program, one per graph
+  and step); read from the steps they are scans the query engine joins by
+  hashing. The library's row-per-step queries take a third to a half of the
+  time they took with look-ups (docs/querying.md, "Speed");
+* **instance counts** -- one ``sga:ClassCount`` for every class the program's
+  graph types instances with: ``sga:countedIn``, ``sga:countedClass`` and
+  ``sga:instanceCount`` (the ``instance-counts`` query reads these few
+  dozen numbers instead of every instance).
 
 What is *not* derived, to keep loads fast (the target is a load rate at most
 15 % below a load without this layer; see ``bench/query_bench.py``): nothing
@@ -59,6 +71,7 @@ from stepnc_graph.core.naming import (
     P21_NS,
     STEPNC_NS,
     Naming,
+    class_count_iri,
     derived_graph_iri,
     execution_step_iri,
     generic_attribute_iri,
@@ -75,6 +88,9 @@ RDF_TYPE = f"<{RDF_NS}type>"
 RDF_FIRST = ox.NamedNode(RDF_NS + "first")
 RDF_REST = ox.NamedNode(RDF_NS + "rest")
 XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
+#: the layer's format: what the library queries expect to find (``sga:layerVersion`` on the layer).
+#: 2: steps carry their program, workingstep #id, operation #id and class; class counts
+LAYER_VERSION = 2
 #: characters of layer text per bulk-load call: the store's own batch (see store.BATCH_CHARS)
 TEXT_PIECE = 12_000_000
 
@@ -341,6 +357,12 @@ class ExecutionOrder:
                 f"SELECT ?ws ?tool WHERE {{ VALUES ?p {{ {_values(rules.operation_properties)} }} "
                 f"VALUES ?q {{ {_values(rules.tool_properties)} }} ?ws ?p ?op . ?op ?q ?tool }}"):
             self.tool[ws] = tool
+        #: workingstep -> the #id and the classes (as typed in the program's graph) of its operation
+        self.operation: dict[Term, tuple[int, list[Term]]] = {}
+        for ws, cls, ident in reader.select(
+                f"SELECT ?ws ?c ?id WHERE {{ VALUES ?p {{ {_values(rules.operation_properties)} }} "
+                f"?ws ?p ?op . ?op a ?c ; <{P21_NS}id> ?id }}"):
+            self.operation.setdefault(ws, (int(ident.value), []))[1].append(cls)
         self.steps: list[Step] = []
 
     def one(self, node: ox.NamedNode, prop: str) -> Term | None:
@@ -396,12 +418,20 @@ class ExecutionOrder:
         cls = _sga("ExecutionStep")
         order, executes, workplan, setup, nxt, tool, before = (
             _sga(n) for n in ("order", "executes", "workplan", "setup", "next", "tool", "toolBefore"))
+        program, ws_id, op_id, op_class = (
+            _sga(n) for n in ("program", "workingstepId", "operationId", "operationClass"))
+        graph_node = f"<{graph}>"
         spindle: Term | None = None  # the tool of the last step that had one
         for i, s in enumerate(self.steps):
             me = iri[i]
             yield f"{me} {RDF_TYPE} {cls} .\n"
             yield f"{me} {order} {_integer(s.order)} .\n"
             yield f"{me} {executes} {s.workingstep} .\n"
+            yield f"{me} {program} {graph_node} .\n"
+            yield f"{me} {ws_id} {_integer(self.ids[s.workingstep])} .\n"
+            if (operation := self.operation.get(s.workingstep)) is not None:
+                yield f"{me} {op_id} {_integer(operation[0])} .\n"
+                yield from (f"{me} {op_class} {c} .\n" for c in operation[1])
             if s.workplan is not None:
                 yield f"{me} {workplan} {s.workplan} .\n"
             if s.setup is not None:
@@ -467,7 +497,8 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     # ingestion on disk, whatever its size, and holds memory in proportion to it); the lines
     # are made as they are written (a program of 1M instances has ~300k of them here).
     written += _write_text(store, node.value, itertools.chain(
-        order.triples(graph), order.feature_triples(), [f"<{layer}> {_sga('layerOf')} <{graph}> .\n"]))
+        order.triples(graph), order.feature_triples(), instance_counts(reader, graph),
+        [f"<{layer}> {_sga('layerOf')} <{graph}> .\n", f"<{layer}> {_sga('layerVersion')} {_integer(LAYER_VERSION)} .\n"]))
     del order
     from stepnc_graph.store import GraphStore
 
@@ -482,6 +513,21 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         store.update(_blank_updates(rules, target(graph), node.value))
         written += store.count(node.value) - before
     return DerivedLayer(layer, (mapped or 0) + written, steps)
+
+
+def instance_counts(reader: _Reader, graph: str) -> Iterator[str]:
+    """How many instances (IRIs, not the blank nodes of typed values) the program's graph types
+    with each class, as it types them (no superclasses): one ``sga:ClassCount`` per class, with
+    ``sga:countedIn``, ``sga:countedClass`` and ``sga:instanceCount``, in the order of the classes'
+    IRIs (so a re-load of the same file writes the same lines)."""
+    rows = reader.select("SELECT ?c (COUNT(?i) AS ?n) WHERE { ?i a ?c FILTER(isIRI(?i)) } GROUP BY ?c ORDER BY ?c")
+    kind, program, counted, count = (_sga(n) for n in ("ClassCount", "countedIn", "countedClass", "instanceCount"))
+    for index, (cls, n) in enumerate((r for r in rows if isinstance(r[0], ox.NamedNode)), start=1):
+        me = f"<{class_count_iri(graph, index)}>"
+        yield f"{me} {RDF_TYPE} {kind} .\n"
+        yield f"{me} {program} <{graph}> .\n"
+        yield f"{me} {counted} {cls} .\n"
+        yield f"{me} {count} {_integer(int(n.value))} .\n"
 
 
 def _write_text(store: Store, graph: str, lines: Iterable[str], piece: int = TEXT_PIECE) -> int:

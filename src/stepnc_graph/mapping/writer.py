@@ -43,8 +43,10 @@ from stepnc_graph.mapping.plans import (
 )
 from stepnc_graph.mapping.ntriples import RDF, RDF_TYPE, XSD
 from stepnc_graph.core.naming import P21_NS
+from stepnc_graph.part21.diagnostics import Part21SyntaxError
 from stepnc_graph.part21.format import FormatError
 from stepnc_graph.part21.format import format_real as part21_real
+from stepnc_graph.part21.reader import read_instance
 from stepnc_graph.part21.strings import encode
 
 _TRAILING_ID = re.compile(r"i([0-9]+)$")
@@ -156,14 +158,31 @@ class Part21Writer:
                 continue
             ids = p.get(P21_ID)
             if ids:
-                numbered.append((int(ids[0].value), key))
+                numbered.append((self._id(key, ids), key))
             elif any(f"<{t.value}>" == P21_RAW or t.value in self.plans.by_class for t in p.get(RDF_TYPE, [])):
                 unnumbered.append(key)
+        first: dict[int, str] = {}
+        for i, key in numbered:
+            if first.setdefault(i, key) != key:
+                raise WriteError(f"{first[i]} and {key} both have p21:id {i}: a Part 21 file defines each #id once")
         next_id = max((i for i, _ in numbered), default=0) + 1
         for key in sorted(unnumbered):
             numbered.append((next_id, key))
             next_id += 1
         return sorted(numbered)
+
+    @staticmethod
+    def _id(key: str, ids: list[Any]) -> int:
+        """The node's one ``p21:id``, a whole number (a graph edited by hand may hold other values)."""
+        if len(ids) != 1:
+            raise WriteError(f"{key} has {len(ids)} p21:id values: an instance has one #id")
+        text = ids[0].value if isinstance(ids[0], ox.Literal) else ""
+        try:
+            if text.isascii() and text.isdigit():
+                return int(text)
+        except ValueError:  # longer than int() reads (4,300 digits): no name the reader accepts either
+            pass
+        raise WriteError(f"{key} has p21:id {ids[0]}, which is no instance number")
 
     # -- instances ------------------------------------------------------------------
 
@@ -182,7 +201,7 @@ class Part21Writer:
             return comment(f"stepnc-graph: #{p21_id} could not be read ({why}); its text: "
                            f"{p[P21_RAW_TEXT][0].value if P21_RAW_TEXT in p else ''}")
         if P21_RAW[1:-1] in types:
-            return str((p.get(P21_REPAIRED_TEXT) or p[P21_RAW_TEXT])[0].value)
+            return self._raw_text(p21_id, key)
         plans = [self.plans.by_class[t] for t in types if t in self.plans.by_class]
         if not plans:
             raise WriteError(f"{key} (#{p21_id}) has no entity type of the schema")
@@ -193,6 +212,22 @@ class Part21Writer:
         parts = "".join(f"{pl.name.upper()}({self._params(key, pl.own_slots)})"
                         for pl in sorted(leaves, key=lambda pl: pl.name))
         return f"#{p21_id}=({parts});"
+
+    def _raw_text(self, p21_id: int, key: str) -> str:
+        """A raw instance's kept text (repaired where the reader repaired it), written as it is: so
+        it must read back as this one instance (a graph edited by hand may hold any string)."""
+        p = self.props[key]
+        texts = p.get(P21_REPAIRED_TEXT) or p.get(P21_RAW_TEXT) or []
+        if len(texts) != 1 or not isinstance(texts[0], ox.Literal):
+            raise WriteError(f"{key} (#{p21_id}) is a p21:RawInstance without one text literal (p21:rawText)")
+        text = str(texts[0].value)
+        try:
+            found = read_instance(text)
+        except Part21SyntaxError as e:
+            raise WriteError(f"{key} (#{p21_id}): its p21:rawText is not one Part 21 instance ({e.message})") from None
+        if found.id != p21_id:
+            raise WriteError(f"{key} has p21:id {p21_id} but its p21:rawText defines #{found.id}")
+        return text
 
     def _params(self, key: str, slots: tuple[Slot, ...]) -> str:
         p = self.props[key]

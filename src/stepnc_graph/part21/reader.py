@@ -832,6 +832,24 @@ def defined_ids(text: str) -> set[int]:
     return {int(x) for x in _DEFINITION.findall(text) if len(x) <= limit}
 
 
+_ONE_INSTANCE = ("ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('','',(''),(''),'','','');\n"
+                 "FILE_SCHEMA(('ANY'));\nENDSEC;\nDATA;\n{}\nENDSEC;\nEND-ISO-10303-21;\n")
+
+
+def read_instance(text: str, filename: str = "<string>") -> Instance:
+    """The one instance ``text`` defines (``#12=NAME(...);``), read strictly.
+
+    The Part 21 writer writes a raw instance's kept text as it is; a graph edited by hand (or
+    imported from JSON-LD) could hold any string there, so the writer reads it back first:
+    :class:`Part21SyntaxError` unless the text is exactly one instance and nothing else.
+    """
+    reader = Part21Reader(_ONE_INSTANCE.format(text), filename)
+    found = list(reader.instances())
+    if len(found) != 1 or reader.unreadable_texts:
+        raise Part21SyntaxError(f"the text {text[:80]!r} is not exactly one instance", filename, 1, 1, "")
+    return found[0]
+
+
 def read_text(text: str, filename: str = "<string>", lenient: bool = False) -> Part21Reader:
     """A reader over ``text`` (header already parsed; iterate ``instances()``)."""
     return Part21Reader(text, filename, lenient)

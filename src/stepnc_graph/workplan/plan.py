@@ -12,29 +12,40 @@ and the critical (most used) tool.
 
 The picture is written by our own small SVG writer (no plotting dependency; networkx's drawing
 needs matplotlib and knows nothing of lanes): setups are lanes, workingsteps boxes in execution
-order coloured by tool, tool changes marked, rough -> finish pairs of a feature joined by arcs
-(red and dashed when the finish comes first). PNG needs the ``png`` extra (cairosvg).
+order coloured by tool, in rows of a readable width, tool changes marked, rough -> finish pairs of
+a feature joined by arcs (red and dashed when the finish comes first); a large plan is drawn as
+runs of steps with one setup and one tool, in pages (:class:`PlanPicture`). PNG needs the ``png``
+extra (cairosvg).
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from html import escape
 from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import pyoxigraph as ox
 
-from stepnc_graph.core.naming import ANALYSIS_NS, VOCABULARY_GRAPH, derived_graph_iri
+from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri
 from stepnc_graph.querying.query import PREFIXES
 
 if TYPE_CHECKING:
+    import networkx as nx
+
     from stepnc_graph.store import GraphStore
 
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#b07aa1", "#76b7b2", "#edc948", "#ff9da7", "#9c755f", "#bab0ac",
            "#e15759")
+
+
+def _ink(fill: str) -> str:
+    """Text colour readable on ``fill``: dark on light colours (relative luminance above 0.5)."""
+    r, g, b = (int(fill[i:i + 2], 16) / 255 for i in (1, 3, 5))
+    return "#222" if 0.2126 * r + 0.7152 * g + 0.0722 * b > 0.5 else "#fff"
 
 
 class PlanError(ValueError):
@@ -63,6 +74,9 @@ class Step:
     operation: Thing | None
     features: list[Thing] = field(default_factory=list)
     kind: str = ""  # "rough", "finish" or ""
+    #: the first step of a root of the execution order (a project's main workplan): the tool it
+    #: takes is loaded, not changed (the derived layer's rule, see stepnc_graph.loading.derive)
+    starts_root: bool = False
 
 
 @dataclass(frozen=True)
@@ -82,48 +96,95 @@ class Precedence:
     rough: int
 
 
-def _rows(store: GraphStore, graph: str, query: str) -> list[dict[str, Any]]:
+def _rows(store: GraphStore, graph: str, query: str) -> list[list[str]]:
+    """The rows of ``query`` over one program (its graph, its derived layer and the vocabulary; ``GRAPH
+    ?g`` for the program's own triples): each value the term's text ("" when unbound), in the order
+    SELECTed. Read as SPARQL CSV, which Oxigraph writes and Python's csv module reads without a
+    Python object per term (a third of the time for the 36,000 things of a 100k-instance program)."""
     result = store.query(query, prefixes=PREFIXES,
                          default_graph=[ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],
                          named_graphs=[ox.NamedNode(graph)])
-    return [{k.value: (None if row[k] is None else row[k].value) for k in result.variables} for row in result]
+    text = (result.serialize(format=ox.QueryResultsFormat.CSV) or b"").decode("utf-8")
+    return list(csv.reader(io.StringIO(text, newline="")))[1:]
 
 
+# The queries read the derived layer's execution steps and what they name, each property in one scan
+# joined by hashing (docs/querying.md, "Writing fast queries"); list chains are followed in Python.
+# A program of 100k instances has 9,000 steps and 36,000 things to show: a look-up per thing, or a
+# property path per list, took most of the time.
 _STEPS = """
-SELECT ?order ?ws ?wp ?setup ?tool ?op ?kind WHERE {
-  ?step sga:executes ?ws ; sga:order ?order .
-  OPTIONAL { ?step sga:workplan ?wp } OPTIONAL { ?step sga:setup ?setup } OPTIONAL { ?step sga:tool ?tool }
-  OPTIONAL { ?ws attr:its_operation ?op
-             OPTIONAL { ?op a ?rough FILTER(?rough = sga:RoughingOperation) }
-             OPTIONAL { ?op a ?finish FILTER(?finish = sga:FinishingOperation) } }
-  BIND(IF(BOUND(?rough), "rough", IF(BOUND(?finish), "finish", "")) AS ?kind)
-} ORDER BY ?order"""
-_EDGES = """
+SELECT ?order ?ws ?wp ?setup ?tool WHERE {
+  { SELECT ?step ?order WHERE { ?step sga:order ?order } }
+  { SELECT ?step ?ws WHERE { ?step sga:executes ?ws } }
+  OPTIONAL { { SELECT ?step ?wp WHERE { ?step sga:workplan ?wp } } }
+  OPTIONAL { { SELECT ?step ?setup WHERE { ?step sga:setup ?setup } } }
+  OPTIONAL { { SELECT ?step ?tool WHERE { ?step sga:tool ?tool } } }
+}"""
+#: the last step of each root of the execution order (sga:next joins the steps of one root only)
+_LAST = "SELECT ?order WHERE { ?step sga:order ?order MINUS { ?step sga:next ?next } }"
+_KINDS = """
+SELECT ?op ?kind WHERE {
+  { ?op a sga:RoughingOperation BIND("rough" AS ?kind) } UNION { ?op a sga:FinishingOperation BIND("finish" AS ?kind) }
+}"""
+#: the workingsteps' features and operations
+_STEP_EDGES = """
+SELECT ?s ?p ?o WHERE { { ?s sga:feature ?o BIND("feature" AS ?p) } UNION { ?s attr:its_operation ?o BIND("operation" AS ?p) } }"""
+#: the operations' technologies, the projects' main workplans (for the graph)
+_MORE_EDGES = """
 SELECT ?s ?p ?o WHERE {
-  { ?s sga:feature ?o BIND("feature" AS ?p) }
-  UNION { ?s attr:its_operation ?o BIND("operation" AS ?p) }
-  UNION { ?x attr:its_operation ?s . ?s attr:its_technology ?o BIND("technology" AS ?p) }
+  { SELECT DISTINCT ?s ?p ?o WHERE {
+    { SELECT ?s WHERE { ?x attr:its_operation ?s } } { SELECT ?s ?o WHERE { ?s attr:its_technology ?o } }
+    BIND("technology" AS ?p) } }
   UNION { ?s stepnc:project.main_workplan ?o BIND("main_workplan" AS ?p) }
 }"""
-_ELEMENTS = """
+#: the members of program structures but workplans (``?i``: the branch of an if statement, else 0)
+_MEMBERS = """
 SELECT ?s ?o ?i WHERE {
-  { ?s stepnc:workplan.its_elements/rdf:rest* ?cell . ?cell rdf:first ?o ; sga:index ?i }
-  UNION { ?s stepnc:parallel.branches|stepnc:non_sequential.its_elements|stepnc:selective.its_elements ?o }
+  { ?s stepnc:parallel.branches|stepnc:non_sequential.its_elements|stepnc:selective.its_elements ?o BIND(0 AS ?i) }
   UNION { ?s stepnc:if_statement.true_branch ?o BIND(1 AS ?i) }
   UNION { ?s stepnc:if_statement.false_branch ?o BIND(2 AS ?i) }
   UNION { ?s stepnc:while_statement.body ?o BIND(1 AS ?i) }
 }"""
-_LABELS = """
-SELECT ?x ?label ?n ?cls WHERE { GRAPH ?g { ?x p21:id ?n ; a ?cls } OPTIONAL { ?x attr:its_id ?label } }"""
+#: the workplans' element lists: their heads, and every indexed list cell (sga:index: the derived
+#: layer's positions, on the cells of the process lists) with its member and the next cell
+_HEADS = "SELECT ?s ?head WHERE { ?s stepnc:workplan.its_elements ?head }"
+_CELLS = """
+SELECT ?cell ?i ?o ?rest WHERE {
+  { SELECT ?cell ?i WHERE { ?cell sga:index ?i } }
+  { SELECT ?cell ?o WHERE { ?cell rdf:first ?o } }
+  { SELECT ?cell ?rest WHERE { ?cell rdf:rest ?rest } }
+}"""
+#: what the plan shows of a thing (its_id, #id and class as the program's graph types it; a row per
+#: class), for the things ``NAMED`` names
+_THINGS = """
+SELECT ?x ?label ?n ?cls WHERE {
+  { SELECT DISTINCT ?x WHERE { NAMED } }
+  { SELECT ?x ?n WHERE { GRAPH ?g { ?x p21:id ?n } } }
+  OPTIONAL { { SELECT ?x ?cls WHERE { GRAPH ?g { ?x a ?cls } } } }
+  OPTIONAL { { SELECT ?x ?label WHERE { ?x attr:its_id ?label } } }
+}"""
+_STEP_THINGS = "?s sga:executes|sga:workplan|sga:setup|sga:tool|sga:feature|attr:its_operation ?x"
+_MORE_THINGS = "{ ?s attr:its_technology ?x } UNION { ?x stepnc:project.main_workplan ?w }"
+#: the same for a few things by IRI
+_THING = """
+SELECT ?x ?label ?n ?cls WHERE { GRAPH ?g { ?x p21:id ?n OPTIONAL { ?x a ?cls } } OPTIONAL { ?x attr:its_id ?label } }"""
 
 
 class Plan:
-    """The plan of one loaded program: ``graph`` (a networkx MultiDiGraph) and the execution ``steps``."""
+    """The plan of one loaded program: the execution ``steps`` and ``graph`` (a networkx MultiDiGraph;
+    ``build_plan(..., network=False)`` leaves it out: the analyses, the summary text and the picture
+    need the steps only)."""
 
-    def __init__(self, program: str, steps: list[Step], graph: nx.MultiDiGraph) -> None:
+    def __init__(self, program: str, steps: list[Step], graph: nx.MultiDiGraph | None = None) -> None:
         self.program = program
         self.steps = steps
-        self.graph = graph
+        self._graph = graph
+
+    @property
+    def graph(self) -> nx.MultiDiGraph:
+        if self._graph is None:
+            raise PlanError("this plan was built without its graph: build_plan(store, graph, network=True)")
+        return self._graph
 
     # -- analyses ------------------------------------------------------------------------------
 
@@ -131,10 +192,13 @@ class Plan:
         return list(self.steps)
 
     def tool_changes(self) -> list[ToolChange]:
-        """Steps whose tool differs from the one in the spindle (the last tool used before)."""
+        """Steps whose tool differs from the one in the spindle (the last tool used before, in the same
+        root of the execution order: another project's first tool is a load, not a change)."""
         out = []
         spindle: Thing | None = None
         for s in self.steps:
+            if s.starts_root:
+                spindle = None
             if s.tool is None:
                 continue
             if spindle is not None and s.tool.iri != spindle.iri:
@@ -223,25 +287,71 @@ class Plan:
 
     def graphml(self) -> str:
         """GraphML for other tools (yEd, Gephi, Cytoscape): every attribute a string or number."""
+        import networkx as nx
+
         return "\n".join(nx.generate_graphml(self.graph, named_key_ids=True)) + "\n"
 
-    def svg(self) -> str:
-        return PlanPicture(self).render()
+    def svg(self, page: int = 1) -> str:
+        """The picture (page ``page`` of :meth:`pages`): see :class:`PlanPicture`."""
+        return PlanPicture(self).render(page)
+
+    def pages(self) -> int:
+        """How many pages the picture has (one unless the plan is summarised in blocks)."""
+        return PlanPicture(self).pages()
 
 
 # -- building --------------------------------------------------------------------------------------
 
 
-def _thing(info: dict[str, dict[str, Any]], iri: str | None) -> Thing | None:
-    if iri is None:
+def _thing(info: dict[str, Thing], iri: str | None) -> Thing | None:
+    if not iri:
         return None
-    row = info.get(iri, {})
-    return Thing(iri, row.get("label") or "", f"#{row['n']}" if row.get("n") else "",
-                 (row.get("cls") or "").rsplit("#", 1)[-1])
+    return info.get(iri) or Thing(iri, "", "", "")
 
 
-def build_plan(store: GraphStore, graph: str | None = None) -> Plan:
-    """The plan of the program in ``graph`` (or the store's only program)."""
+def _things(store: GraphStore, graph: str, named: str, info: dict[str, Thing]) -> None:
+    """Add the Things ``named`` names (a SPARQL pattern binding ``?x``) to ``info``."""
+    for x, label, n, cls in _rows(store, graph, _THINGS.replace("NAMED", named)):
+        info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
+
+
+def _elements(store: GraphStore, graph: str) -> list[tuple[str, str, int]]:
+    """(structure, member, index) of every program structure: a workplan's elements in list order
+    (index = place in the list), the members of the others (index: 1/2 for an if statement's
+    branches, 1 for a loop's body, 0 for the sets of parallel, non-sequential and selective)."""
+    cells = {cell: (int(i), o, rest) for cell, i, o, rest in _rows(store, graph, _CELLS)}
+    out: list[tuple[str, str, int]] = []
+    for s, head in _rows(store, graph, _HEADS):
+        cell, seen = head, set()
+        while cell in cells and cell not in seen:
+            seen.add(cell)
+            i, o, cell = cells[cell]
+            out.append((s, o, i))
+    out += [(s, o, int(i)) for s, o, i in _rows(store, graph, _MEMBERS)]
+    return out
+
+
+def _steps(store: GraphStore, graph: str, info: dict[str, Thing], features: dict[str, list[str]],
+           operations: dict[str, str]) -> list[Step]:
+    """The execution steps in order, with the things they name and whether they rough or finish."""
+    kinds: dict[str, str] = {}
+    for iri, kind in _rows(store, graph, _KINDS):
+        if kinds.get(iri) != "rough":  # an operation that is both (none in ISO 14649) counts as roughing
+            kinds[iri] = kind
+    last = {int(order) for (order,) in _rows(store, graph, _LAST)}
+    steps: list[Step] = []
+    for order, ws, wp, setup, tool in sorted(_rows(store, graph, _STEPS), key=lambda r: int(r[0])):
+        op = operations.get(ws)
+        steps.append(Step(int(order), info.get(ws) or Thing(ws, "", "", ""), _thing(info, wp), _thing(info, setup),
+                          _thing(info, tool), _thing(info, op),
+                          [f for f in (_thing(info, x) for x in sorted(features.get(ws, ()))) if f is not None],
+                          kinds.get(op, "") if op else "", starts_root=not steps or steps[-1].order in last))
+    return steps
+
+
+def build_plan(store: GraphStore, graph: str | None = None, *, network: bool = True) -> Plan:
+    """The plan of the program in ``graph`` (or the store's only program); without ``network``, the
+    steps only (no :attr:`Plan.graph`: what `stepnc-graph plan` needs for its summary and picture)."""
     from stepnc_graph.graphs.vocabulary_graph import vocabulary_for_queries
 
     vocabulary_for_queries(store)
@@ -253,158 +363,334 @@ def build_plan(store: GraphStore, graph: str | None = None) -> Plan:
         graph = programs[0]
     if graph not in programs:
         raise PlanError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
-    info = {r["x"]: r for r in _rows(store, graph, _LABELS) if r["cls"] and not r["cls"].startswith(ANALYSIS_NS)}
-    g: nx.MultiDiGraph = nx.MultiDiGraph(program=graph)
+    info: dict[str, Thing] = {}
+    _things(store, graph, _STEP_THINGS, info)
+    edges = sorted({(s, p, o) for s, p, o in _rows(store, graph, _STEP_EDGES)})
+    features: dict[str, list[str]] = defaultdict(list)
+    operations: dict[str, str] = {}
+    for s, p, o in edges:
+        if p == "feature":
+            features[s].append(o)
+        else:
+            operations[s] = o
+    steps = _steps(store, graph, info, features, operations)
+    if not network:
+        return Plan(graph, steps)
+    _things(store, graph, _MORE_THINGS, info)
+    edges += sorted({(s, p, o) for s, p, o in _rows(store, graph, _MORE_EDGES)}, key=lambda e: (e[1], e))
+    elements = _elements(store, graph)
+    others = sorted({x for s, o, _ in elements for x in (s, o)
+                     if x not in info and x.startswith(("http:", "https:")) and ">" not in x})
+    if others:
+        values = " ".join(f"<{x}>" for x in others)
+        for x, label, n, cls in _rows(store, graph, _THING.replace("WHERE {", f"WHERE {{ VALUES ?x {{ {values} }}", 1)):
+            info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
+    return Plan(graph, steps, _network(graph, steps, info, edges, elements))
+
+
+def _network(program: str, steps: list[Step], info: dict[str, Thing], edges: list[tuple[str, str, str]],
+             elements: list[tuple[str, str, int]]) -> nx.MultiDiGraph:
+    """The plan as a networkx graph: project -> workplans -> workingsteps in order, with their features,
+    operations, tools, technologies and setups."""
+    import networkx as nx  # only here: importing it takes 0.2-0.5 s, which a summary or a picture need not pay
+
+    g: nx.MultiDiGraph = nx.MultiDiGraph(program=program)
 
     def node(iri: str, kind: str) -> None:
-        t = _thing(info, iri)
-        assert t is not None
+        t = info.get(iri) or Thing(iri, "", "", "")
         g.add_node(iri, kind=kind, label=t.label, ref=t.ref, cls=t.cls)
 
-    edges = _rows(store, graph, _EDGES)
-    features: dict[str, list[str]] = defaultdict(list)
-    for e in edges:
-        if e["p"] == "feature":
-            features[e["s"]].append(e["o"])
-    steps: list[Step] = []
-    for r in _rows(store, graph, _STEPS):
-        ws = _thing(info, r["ws"])
-        assert ws is not None
-        steps.append(Step(int(r["order"]), ws, _thing(info, r["wp"]), _thing(info, r["setup"]), _thing(info, r["tool"]),
-                          _thing(info, r["op"]), [f for f in (_thing(info, x) for x in sorted(features[r["ws"]]))
-                                                  if f is not None], r["kind"] or ""))
-    for s in steps:
-        node(s.workingstep.iri, "workingstep")
-        g.nodes[s.workingstep.iri].setdefault("order", s.order)
-        if s.setup is not None:
-            node(s.setup.iri, "setup")
-            g.add_edge(s.setup.iri, s.workingstep.iri, key=f"runs{s.order}", kind="runs", order=s.order)
-        if s.tool is not None:
-            node(s.tool.iri, "tool")
+    for st in steps:
+        node(st.workingstep.iri, "workingstep")
+        g.nodes[st.workingstep.iri].setdefault("order", st.order)
+        if st.setup is not None:
+            node(st.setup.iri, "setup")
+            g.add_edge(st.setup.iri, st.workingstep.iri, key=f"runs{st.order}", kind="runs", order=st.order)
+        if st.tool is not None:
+            node(st.tool.iri, "tool")
     for a, b in zip(steps, steps[1:], strict=False):
         g.add_edge(a.workingstep.iri, b.workingstep.iri, key=f"next{a.order}", kind="next", order=a.order)
     kinds = {"feature": "feature", "operation": "operation", "technology": "technology", "main_workplan": "workplan"}
-    for e in sorted(edges, key=lambda e: e["p"] == "technology"):  # operations before their technology
-        if e["s"] in g or e["p"] == "main_workplan":
-            if e["p"] == "main_workplan":
-                node(e["s"], "project")
-            node(e["o"], kinds[e["p"]])
-            g.add_edge(e["s"], e["o"], key=e["p"], kind=e["p"])
-    for e in _rows(store, graph, _ELEMENTS):
-        if e["s"] in info and e["o"] in info:
-            if e["s"] not in g:
-                node(e["s"], "workplan")
-            if e["o"] not in g:
-                node(e["o"], "workplan")
-            g.add_edge(e["s"], e["o"], key=f"element{e['i'] or 0}", kind="element", index=int(e["i"] or 0))
-    for s in steps:
-        if s.operation is not None and s.tool is not None:
-            g.add_edge(s.operation.iri, s.tool.iri, key="tool", kind="tool")
-    return Plan(graph, steps, g)
+    for s, p, o in edges:  # operations before their technology
+        if s in g or p == "main_workplan":
+            if p == "main_workplan":
+                node(s, "project")
+            node(o, kinds[p])
+            g.add_edge(s, o, key=p, kind=p)
+    for s, o, i in elements:
+        if s in info and o in info:
+            if s not in g:
+                node(s, "workplan")
+            if o not in g:
+                node(o, "workplan")
+            g.add_edge(s, o, key=f"element{i}", kind="element", index=i)
+    for st in steps:
+        if st.operation is not None and st.tool is not None:
+            g.add_edge(st.operation.iri, st.tool.iri, key="tool", kind="tool")
+    return g
 
 
 # -- the picture -----------------------------------------------------------------------------------
 
 
-class PlanPicture:
-    """An SVG of the plan: one lane per setup, workingsteps left to right in execution order.
+@dataclass(frozen=True)
+class Block:
+    """Consecutive steps with one setup and one tool: one box of a summarised picture."""
 
-    Every workingstep box is ``<g class="workingstep" data-order=.. data-ref=.. data-tool=..>``,
-    every tool change ``<g class="tool-change" data-order=..>``, every rough/finish arc
-    ``<path class="rough-finish" data-feature=..>`` (``precedence`` added when the finish comes
-    first), so the picture can be checked (and styled) by machine.
+    steps: tuple[Step, ...]
+
+    @property
+    def first(self) -> Step:
+        return self.steps[0]
+
+    @property
+    def last(self) -> Step:
+        return self.steps[-1]
+
+
+def blocks(steps: list[Step]) -> list[Block]:
+    """The steps cut wherever the setup or the tool changes."""
+    out: list[list[Step]] = []
+    for s in steps:
+        if out and _block_key(out[-1][-1]) == _block_key(s):
+            out[-1].append(s)
+        else:
+            out.append([s])
+    return [Block(tuple(b)) for b in out]
+
+
+def _block_key(s: Step) -> tuple[str | None, str | None]:
+    return (s.setup.iri if s.setup else None, s.tool.iri if s.tool else None)
+
+
+class PlanPicture:
+    """An SVG of the plan that stays readable at any size: at most :data:`ROW` boxes a row.
+
+    Up to :data:`DETAIL` workingsteps, one box per workingstep in execution order, in rows of
+    :data:`ROW`; each row has one lane per setup; tool changes marked, rough -> finish pairs of a
+    feature joined by arcs (red and dashed when the finish comes first). Every workingstep box is
+    ``<g class="workingstep" data-order=.. data-ref=.. data-tool=..>``, every tool change ``<g
+    class="tool-change" data-order=..>``, every rough/finish arc ``<path class="rough-finish"
+    data-feature=..>`` (``precedence`` added when the finish comes first), every lane ``<g
+    class="lane" data-setup=..>``, so the picture can be checked (and styled) by machine.
+
+    Larger plans are summarised: one box per block of consecutive steps with one setup and one tool
+    (``<g class="block" data-first=.. data-last=.. data-steps=.. data-setup=.. data-tool=..>``,
+    ``precedence`` in its class when a finishing step in it runs before a roughing step on the same
+    feature), :data:`BLOCK_ROW` a row, :data:`PAGE_BLOCKS` a page; a tool change is marked before
+    the block it starts (``<g class="tool-change">``).
     """
 
     BOX_W, BOX_H, GAP, LANE_H, LEFT, TOP = 120, 46, 14, 92, 150, 70
+    #: at most this many boxes a row, and the most steps shown one box each (beyond: blocks)
+    ROW, DETAIL = 16, 48
+    #: tools the legend names at most (the blocks' tooltips name theirs)
+    LEGEND = 24
+    BLOCK_W, BLOCK_H, BLOCK_ROW, PAGE_BLOCKS = 170, 64, 8, 120
 
     def __init__(self, plan: Plan) -> None:
         self.plan = plan
-        lanes: list[str] = []
+        lanes: dict[str, None] = {}
+        tools: dict[str, int] = {}
         for s in plan.steps:
-            name = s.setup.label if s.setup else "(no setup)"
-            if name not in lanes:
-                lanes.append(name)
-        self.lanes = lanes
-        tools: list[str] = []
-        for s in plan.steps:
-            if s.tool is not None and s.tool.iri not in tools:
-                tools.append(s.tool.iri)
+            lanes.setdefault(s.setup.label if s.setup else "(no setup)")
+            if s.tool is not None:
+                tools.setdefault(s.tool.iri, len(tools))
+        self.lanes = list(lanes)
+        self.lane = {name: i for i, name in enumerate(self.lanes)}
         self.tools = tools
+        n = len(plan.steps)
+        #: boxes a row: rows as even as they can be (13 steps: one row, 20: two of 10)
+        self.row = -(-n // -(-n // self.ROW)) if n else 1
 
     def colour(self, step: Step) -> str:
         if step.tool is None:
             return "#dddddd"
-        return PALETTE[self.tools.index(step.tool.iri) % len(PALETTE)]
+        return PALETTE[self.tools[step.tool.iri] % len(PALETTE)]
+
+    def pages(self) -> int:
+        if len(self.plan.steps) <= self.DETAIL:
+            return 1
+        return max(1, -(-len(blocks(self.plan.steps)) // self.PAGE_BLOCKS))
+
+    def render(self, page: int = 1) -> str:
+        pages = self.pages()
+        if not 1 <= page <= pages:
+            raise PlanError(f"the picture has {pages} page(s); no page {page}")
+        if len(self.plan.steps) <= self.DETAIL:
+            return self.detailed()
+        return self.summarised(page, pages)
+
+    def _head(self, width: int, height: int, subtitle: str) -> list[str]:
+        return [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+                f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
+                f"<title>Workplan of {escape(self.plan.program)}</title>",
+                '<defs><marker id="arrow" markerWidth="8" markerHeight="8" refX="7" refY="4" orient="auto">'
+                '<path d="M0,0 L8,4 L0,8 z" fill="#555"/></marker></defs>',
+                f'<text x="10" y="24" font-size="15" font-weight="bold">{escape(self.plan.program)}</text>',
+                f'<text x="10" y="44" fill="#444">{escape(subtitle)}</text>']
+
+    def _legend(self, y: int, steps: list[Step] | tuple[Step, ...]) -> list[str]:
+        out: list[str] = []
+        shown: set[str] = set()
+        for s in steps:
+            t = s.tool
+            if t is None or t.iri in shown:
+                continue
+            shown.add(t.iri)
+            ty = y + 24 * (len(shown) - 1)
+            if len(shown) > self.LEGEND:
+                more = len({x.tool.iri for x in steps if x.tool}) - self.LEGEND
+                out.append(f'<text class="legend-more" x="10" y="{ty + 11}" fill="#444">... and {more} more tools '
+                           "(each box names its tool)</text>")
+                break
+            out.append(f'<g class="legend-tool" data-ref="{escape(t.ref)}"><rect x="10" y="{ty}" width="16" height="14" '
+                       f'fill="{PALETTE[self.tools[t.iri] % len(PALETTE)]}"/><text x="32" y="{ty + 11}">'
+                       f'{escape(t.label or "(no its_id)")} {escape(t.ref)} ({escape(t.cls)})</text></g>')
+        return out
+
+    # -- one box per workingstep -------------------------------------------------------------------
+
+    def row_height(self) -> int:
+        return len(self.lanes) * self.LANE_H + 30
 
     def x(self, index: int) -> int:
-        return self.LEFT + index * (self.BOX_W + self.GAP)
+        return self.LEFT + (index % self.row) * (self.BOX_W + self.GAP)
 
-    def y(self, step: Step) -> int:
-        return self.TOP + self.lanes.index(step.setup.label if step.setup else "(no setup)") * self.LANE_H + 20
+    def y(self, index: int, step: Step) -> int:
+        lane = self.lane[step.setup.label if step.setup else "(no setup)"]
+        return self.TOP + (index // self.row) * self.row_height() + lane * self.LANE_H + 20
 
-    def render(self) -> str:
+    def detailed(self) -> str:
         steps = self.plan.steps
         index = {s.order: i for i, s in enumerate(steps)}
-        width = self.x(len(steps)) + 40
-        legend_y = self.TOP + len(self.lanes) * self.LANE_H + 30
-        height = legend_y + 24 * (len(self.tools) + 2)
-        out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-               f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
-               f"<title>Workplan of {escape(self.plan.program)}</title>",
-               '<defs><marker id="arrow" markerWidth="8" markerHeight="8" refX="7" refY="4" orient="auto">'
-               '<path d="M0,0 L8,4 L0,8 z" fill="#555"/></marker></defs>',
-               f'<text x="10" y="24" font-size="15" font-weight="bold">{escape(self.plan.program)}</text>',
-               f'<text x="10" y="44" fill="#444">{len(steps)} workingsteps, {len(self.plan.tool_changes())} tool '
-               f'changes, {len(self.lanes)} setup(s); arcs join roughing and finishing on a feature</text>']
-        for i, lane in enumerate(self.lanes):
-            top = self.TOP + i * self.LANE_H
-            out.append(f'<g class="lane" data-setup="{escape(lane)}"><rect x="4" y="{top}" width="{width - 8}" '
-                       f'height="{self.LANE_H - 6}" fill="{"#f7f7f7" if i % 2 == 0 else "#efefef"}"/>'
-                       f'<text x="10" y="{top + self.LANE_H // 2}" font-weight="bold">{escape(lane)}</text></g>')
-        for a, b in zip(steps, steps[1:], strict=False):
-            x1, y1 = self.x(index[a.order]) + self.BOX_W, self.y(a) + self.BOX_H // 2
-            x2, y2 = self.x(index[b.order]), self.y(b) + self.BOX_H // 2
-            out.append(f'<line class="sequence" x1="{x1}" y1="{y1}" x2="{x2 - 2}" y2="{y2}" stroke="#555" '
-                       f'marker-end="url(#arrow)"/>')
+        rows = max(1, -(-len(steps) // self.row))
+        width = self.x(min(len(steps), self.row) - 1) + self.BOX_W + 40 if steps else self.LEFT + 40
+        legend_y = self.TOP + rows * self.row_height()
+        height = legend_y + 24 * (min(len(self.tools), self.LEGEND + 1) + 2)
+        out = self._head(width, height, f"{len(steps)} workingsteps, {len(self.plan.tool_changes())} tool changes, "
+                                        f"{len(self.lanes)} setup(s); arcs join roughing and finishing on a feature")
+        for r in range(rows):
+            for i, lane in enumerate(self.lanes):
+                top = self.TOP + r * self.row_height() + i * self.LANE_H
+                out.append(f'<g class="lane" data-setup="{escape(lane)}"><rect x="4" y="{top}" width="{width - 8}" '
+                           f'height="{self.LANE_H - 6}" fill="{"#f7f7f7" if i % 2 == 0 else "#efefef"}"/>'
+                           f'<text x="10" y="{top + self.LANE_H // 2}" font-weight="bold">{escape(lane)}</text></g>')
+        for k, (a, b) in enumerate(zip(steps, steps[1:], strict=False)):
+            x1, y1 = self.x(k) + self.BOX_W, self.y(k, a) + self.BOX_H // 2
+            x2, y2 = self.x(k + 1), self.y(k + 1, b) + self.BOX_H // 2
+            if (k + 1) % self.row:
+                out.append(f'<line class="sequence" x1="{x1}" y1="{y1}" x2="{x2 - 2}" y2="{y2}" stroke="#555" '
+                           f'marker-end="url(#arrow)"/>')
+            else:  # the next row: down the right margin, back to its start
+                bottom = self.TOP + (k // self.row + 1) * self.row_height() - 12
+                out.append(f'<polyline class="sequence" points="{x1},{y1} {x1 + 8},{y1} {x1 + 8},{bottom} '
+                           f'{x2 - 10},{bottom} {x2 - 10},{y2} {x2 - 2},{y2}" fill="none" stroke="#555" '
+                           f'marker-end="url(#arrow)"/>')
         for s in steps:
-            out.append(self.box(s, self.x(index[s.order]), self.y(s)))
+            i = index[s.order]
+            out.append(self.box(s, self.x(i), self.y(i, s)))
         for change in self.plan.tool_changes():
-            cx = self.x(index[change.order]) - self.GAP // 2
+            i = index[change.order]
+            cx, top = self.x(i) - self.GAP // 2, self.TOP + (i // self.row) * self.row_height()
             out.append(f'<g class="tool-change" data-order="{change.order}" data-from="{escape(change.before.ref)}" '
                        f'data-to="{escape(change.after.ref)}"><title>tool change before step {change.order}: '
                        f'{escape(change.before.label)} -&gt; {escape(change.after.label)}</title>'
-                       f'<line x1="{cx}" y1="{self.TOP - 4}" x2="{cx}" y2="{legend_y - 22}" stroke="#d62728" '
-                       f'stroke-width="2"/><text x="{cx}" y="{self.TOP - 8}" text-anchor="middle" fill="#d62728" '
+                       f'<line x1="{cx}" y1="{top - 4}" x2="{cx}" y2="{top + self.row_height() - 24}" stroke="#d62728" '
+                       f'stroke-width="2"/><text x="{cx}" y="{top - 8}" text-anchor="middle" fill="#d62728" '
                        f'font-weight="bold">T</text></g>')
         for feature, rough, finish in self.plan.rough_finish_pairs():
-            a, b = steps[index[rough]], steps[index[finish]]
-            x1, x2 = self.x(index[rough]) + self.BOX_W // 2, self.x(index[finish]) + self.BOX_W // 2
-            y1, y2 = self.y(a) + self.BOX_H, self.y(b) + self.BOX_H
+            i, j = index[rough], index[finish]
+            x1, x2 = self.x(i) + self.BOX_W // 2, self.x(j) + self.BOX_W // 2
+            y1, y2 = self.y(i, steps[i]) + self.BOX_H, self.y(j, steps[j]) + self.BOX_H
             bad = finish < rough
             dash = ' stroke-dasharray="5,3"' if bad else ""
             out.append(f'<path class="rough-finish{" precedence" if bad else ""}" data-feature="{escape(feature.ref)}" '
                        f'd="M{x1},{y1} Q{(x1 + x2) // 2},{max(y1, y2) + 26} {x2},{y2}" fill="none" '
                        f'stroke="{"#d62728" if bad else "#2c7fb8"}" stroke-width="1.5"{dash}><title>{escape(feature.label)} '
                        f'{escape(feature.ref)}: rough step {rough}, finish step {finish}</title></path>')
-        for i, tool in enumerate(self.tools):
-            t = next(s.tool for s in steps if s.tool is not None and s.tool.iri == tool)
-            ty = legend_y + 24 * i
-            out.append(f'<g class="legend-tool" data-ref="{escape(t.ref)}"><rect x="10" y="{ty}" width="16" height="14" '
-                       f'fill="{PALETTE[i % len(PALETTE)]}"/><text x="32" y="{ty + 11}">{escape(t.label or "(no its_id)")} '
-                       f'{escape(t.ref)} ({escape(t.cls)})</text></g>')
+        out += self._legend(legend_y, steps)
         out.append("</svg>")
         return "\n".join(out) + "\n"
 
     def box(self, s: Step, x: int, y: int) -> str:
-        name = s.workingstep.label if len(s.workingstep.label) <= 14 else s.workingstep.label[:13] + "…"
+        head = f"{s.order}. {s.workingstep.label}"
+        name = head if len(head) <= 18 else head[:17] + "…"
+        ink = _ink(self.colour(s))
         detail = " ".join(filter(None, [s.workingstep.ref, s.kind]))
         title = (f"{s.order}. {s.workingstep.label} {s.workingstep.ref}; tool {s.tool.label if s.tool else '-'} "
                  f"{s.tool.ref if s.tool else ''}; features {', '.join(f.label + ' ' + f.ref for f in s.features)}")
         return (f'<g class="workingstep" data-order="{s.order}" data-ref="{escape(s.workingstep.ref)}" '
                 f'data-tool="{escape(s.tool.ref) if s.tool else ""}"><title>{escape(title)}</title>'
                 f'<rect x="{x}" y="{y}" width="{self.BOX_W}" height="{self.BOX_H}" rx="5" fill="{self.colour(s)}" '
-                f'stroke="#333"/><text x="{x + 6}" y="{y + 16}" fill="#fff" font-weight="bold">{s.order}. '
-                f'{escape(name)}</text><text x="{x + 6}" y="{y + 34}" fill="#fff">{escape(detail)}</text></g>')
+                f'stroke="#333"/><text x="{x + 6}" y="{y + 16}" fill="{ink}" font-weight="bold">{escape(name)}</text>'
+                f'<text x="{x + 6}" y="{y + 34}" fill="{ink}">{escape(detail)}</text></g>')
+
+    # -- one box per block of steps with one setup and one tool -----------------------------------
+
+    def summarised(self, page: int, pages: int) -> str:
+        every = blocks(self.plan.steps)
+        shown = every[(page - 1) * self.PAGE_BLOCKS:page * self.PAGE_BLOCKS]
+        starts = {b.first.order for b in shown}
+        changes = [c for c in self.plan.tool_changes() if c.order in starts]
+        late = {p.finish for p in self.plan.precedence_violations()}
+        pitch_x, pitch_y = self.BLOCK_W + self.GAP, self.BLOCK_H + 34
+        rows = -(-len(shown) // self.BLOCK_ROW)
+        width = 20 + self.BLOCK_ROW * pitch_x + 20
+        legend_y = self.TOP + rows * pitch_y + 20
+        steps = [s for b in shown for s in b.steps]
+        height = legend_y + 24 * (min(len({s.tool.iri for s in steps if s.tool}), self.LEGEND + 1) + 1)
+        out = self._head(width, height, f"{len(self.plan.steps)} workingsteps, {len(self.plan.tool_changes())} tool "
+                                        f"changes, {len(self.lanes)} setup(s); page {page} of {pages}: steps "
+                                        f"{shown[0].first.order}-{shown[-1].last.order}, one box per run of steps "
+                                        "with one setup and one tool")
+
+        def at(k: int) -> tuple[int, int]:
+            return 20 + (k % self.BLOCK_ROW) * pitch_x, self.TOP + (k // self.BLOCK_ROW) * pitch_y + 20
+
+        for k, block in enumerate(shown):
+            x, y = at(k)
+            if k + 1 < len(shown):
+                x2, y2 = at(k + 1)
+                if (k + 1) % self.BLOCK_ROW:
+                    out.append(f'<line class="sequence" x1="{x + self.BLOCK_W}" y1="{y + self.BLOCK_H // 2}" '
+                               f'x2="{x2 - 2}" y2="{y2 + self.BLOCK_H // 2}" stroke="#555" marker-end="url(#arrow)"/>')
+            out.append(self.block(block, x, y, any(s.order in late for s in block.steps)))
+        first = {b.first.order: k for k, b in enumerate(shown)}
+        for change in changes:
+            x, y = at(first[change.order])
+            out.append(f'<g class="tool-change" data-order="{change.order}" data-from="{escape(change.before.ref)}" '
+                       f'data-to="{escape(change.after.ref)}"><title>tool change before step {change.order}: '
+                       f'{escape(change.before.label)} -&gt; {escape(change.after.label)}</title>'
+                       f'<line x1="{x - self.GAP // 2}" y1="{y - 6}" x2="{x - self.GAP // 2}" y2="{y + self.BLOCK_H + 6}" '
+                       f'stroke="#d62728" stroke-width="2"/><text x="{x - self.GAP // 2}" y="{y - 9}" '
+                       f'text-anchor="middle" fill="#d62728" font-weight="bold">T</text></g>')
+        out += self._legend(legend_y, steps)
+        out.append("</svg>")
+        return "\n".join(out) + "\n"
+
+    def block(self, b: Block, x: int, y: int, late: bool) -> str:
+        s = b.first
+        setup = s.setup.label if s.setup else "(no setup)"
+        tool = f"{s.tool.label} {s.tool.ref}" if s.tool else "no tool"
+        steps = f"step {s.order}" if len(b.steps) == 1 else f"steps {s.order}-{b.last.order} ({len(b.steps)})"
+        refs = ", ".join(f"{t.order}. {t.workingstep.label} {t.workingstep.ref}" for t in b.steps[:20])
+        more = f", ... ({len(b.steps) - 20} more)" if len(b.steps) > 20 else ""
+        cls = "block precedence" if late else "block"
+        ink = _ink(self.colour(s))
+        stroke = ' stroke="#d62728" stroke-width="3"' if late else ' stroke="#333"'
+
+        def cut(text: str, n: int = 25) -> str:
+            return text if len(text) <= n else text[:n - 1] + "…"
+
+        return (f'<g class="{cls}" data-first="{s.order}" data-last="{b.last.order}" data-steps="{len(b.steps)}" '
+                f'data-setup="{escape(setup)}" data-tool="{escape(s.tool.ref) if s.tool else ""}">'
+                f'<title>{escape(setup)}; tool {escape(tool)}; {escape(refs + more)}'
+                f'{"; a finishing step runs before roughing on its feature" if late else ""}</title>'
+                f'<rect x="{x}" y="{y}" width="{self.BLOCK_W}" height="{self.BLOCK_H}" rx="5" fill="{self.colour(s)}"'
+                f'{stroke}/><text x="{x + 6}" y="{y + 16}" fill="{ink}" font-weight="bold">{escape(steps)}</text>'
+                f'<text x="{x + 6}" y="{y + 34}" fill="{ink}">{escape(cut(tool))}</text>'
+                f'<text x="{x + 6}" y="{y + 52}" fill="{ink}">{escape(cut(setup))}</text></g>')
 
 
 def png(svg: str) -> bytes:

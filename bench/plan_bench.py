@@ -1,0 +1,165 @@
+"""Plan benchmark: `stepnc-graph plan` on a loaded program, end to end, and the picture it draws.
+
+    pip install -e '.[bench]' && python bench/plan_bench.py                  # 100k and 200k instances
+    python bench/plan_bench.py --sizes 200000 --programs generated            # the issue-32 200k figure
+
+For each size and program (bench/generate.py's ``generated`` program, a ``replicated`` real one:
+copies of the shipped two-setup shaft unless ``--real`` names another), loaded once into an
+on-disk store (not timed), each measurement in a fresh process, median of ``--repeat``:
+
+* **plan --svg**: ``stepnc-graph plan --store S --graph G --svg plan.svg`` end to end (start-up,
+  reading the plan, the text summary, the first page of the picture): wall and CPU seconds (the
+  child's user + system time); the target is <= 2 s;
+* **plan --format json --graphml**: the same with the networkx graph (GraphML and the JSON summary);
+* **in process**: ``build_plan`` without and with the graph, and the picture, CPU seconds;
+* **reference**: the library's ``workplan-sequence`` query on the same program (``query --graph G
+  --format csv``, end to end): the same steps read by SPARQL, and the start-up floor
+  (``python -c "import pyoxigraph, click"``);
+* **the picture**: width and height of the first page, pages, bytes, and how many workingstep boxes
+  or runs of steps it draws.
+
+The machine is shared: read CPU seconds beside wall seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from generate import replicate, write  # noqa: E402
+
+SVG = "{http://www.w3.org/2000/svg}"
+TARGET = 2.0
+
+
+def run(cmd: list[str], out: Path | None = None) -> dict[str, float]:
+    """Wall and CPU seconds (user + system of the child) of ``cmd``; its output to ``out``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    started = time.perf_counter()
+    with open(out or os.devnull, "wb") as sink:
+        subprocess.run(cmd, stdout=sink, stderr=subprocess.PIPE, check=True)
+    wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"wall": wall, "cpu": cpu}
+
+
+def median(runs: list[dict[str, float]]) -> dict[str, float]:
+    return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+
+
+def child(store_dir: str, graph: str) -> None:
+    """build_plan without and with its graph, the first page of the picture: CPU seconds (this
+    process, after the imports)."""
+    from stepnc_graph.workplan.plan import build_plan
+    from stepnc_graph.store import GraphStore
+
+    with GraphStore(store_dir, readonly=True) as store:
+        out: dict[str, Any] = {}
+        cpu = time.process_time()
+        plan = build_plan(store, graph, network=False)
+        out["steps_only"] = time.process_time() - cpu
+        cpu = time.process_time()
+        out["svg_bytes"] = len(plan.svg())
+        out["svg"] = time.process_time() - cpu
+        cpu = time.process_time()
+        full = build_plan(store, graph, network=True)
+        out["with_graph"] = time.process_time() - cpu
+        out["nodes"], out["edges"] = full.graph.number_of_nodes(), full.graph.number_of_edges()
+        cpu = time.process_time()
+        full.graphml()
+        out["graphml"] = time.process_time() - cpu
+        out["steps"] = len(plan.steps)
+    print(json.dumps(out))
+
+
+def picture(path: Path) -> dict[str, Any]:
+    root = ET.parse(path).getroot()
+    kinds = [g.get("class", "") for g in root.iter(f"{SVG}g")]
+    return {"width": float(root.get("width", 0)), "height": float(root.get("height", 0)),
+            "boxes": kinds.count("workingstep"), "runs": sum(k.startswith("block") for k in kinds),
+            "bytes": path.stat().st_size}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 200_000])
+    ap.add_argument("--programs", nargs="+", choices=["generated", "replicated"], default=["generated", "replicated"])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--real", type=Path, default=HERE.parent / "examples" / "shaft_two_setups.stp")
+    ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
+    ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(*args.child)
+        return
+    from stepnc_graph.core.naming import default_graph_iri
+
+    args.data.mkdir(parents=True, exist_ok=True)
+    cli = [sys.executable, "-m", "stepnc_graph.cli"]
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}")
+    floor = median([run([sys.executable, "-c", "import pyoxigraph, click"]) for _ in range(args.repeat)])
+    print(f"start-up floor (python -c 'import pyoxigraph, click'): {floor['wall']:.2f} s wall, {floor['cpu']:.2f} s CPU")
+    print(f"\n{'program':>10} {'instances':>10} {'steps':>6} | {'plan --svg':>17} | {'json + graphml':>17} | "
+          f"{'in process: steps, +graph, svg':>30} | {'workplan-sequence':>17} | picture (page 1)")
+    print(f"{'':>10} {'':>10} {'':>6} | {'wall / CPU s':>17} | {'wall / CPU s':>17} | {'CPU s':>30} | "
+          f"{'wall / CPU s':>17} |")
+    verdicts = []
+    for size in args.sizes:
+        for program in args.programs:
+            if program == "generated":
+                path = args.data / f"turning_{size}.stp"
+                if not path.exists():
+                    write(size, path)
+            else:
+                path = args.data / (f"real_{size}.stp" if args.real.name == "shaft_two_setups.stp"
+                                    else f"real_{args.real.stem}_{size}.stp")
+                if not path.exists():
+                    replicate(args.real, size, path)
+            work = Path(tempfile.mkdtemp(prefix="stepnc-plan-bench-", dir=args.data))
+            try:
+                store = work / "store"
+                subprocess.run([*cli, "load", "--store", str(store), str(path)], check=True, capture_output=True)
+                graph = default_graph_iri(str(path))
+                svg = work / "plan.svg"
+                plan = median([run([*cli, "plan", "--store", str(store), "--graph", graph, "--svg", str(svg)])
+                               for _ in range(args.repeat)])
+                full = median([run([*cli, "plan", "--store", str(store), "--graph", graph, "--format", "json",
+                                    "--graphml", str(work / "plan.graphml")]) for _ in range(args.repeat)])
+                query = median([run([*cli, "query", "workplan-sequence", "--store", str(store), "--graph", graph,
+                                     "--format", "csv"]) for _ in range(args.repeat)])
+                inner = [json.loads(subprocess.run([sys.executable, __file__, "--child", str(store), graph],
+                                                   capture_output=True, text=True, check=True).stdout)
+                         for _ in range(args.repeat)]
+                steps = inner[0]["steps"]
+                inproc = {k: statistics.median(r[k] for r in inner) for k in ("steps_only", "with_graph", "svg")}
+                pic = picture(svg)
+                drawn = f"{pic['boxes']} steps" if pic["boxes"] else f"{pic['runs']} runs"
+                print(f"{program:>10} {size:>10,} {steps:>6,} | {plan['wall']:7.2f} / {plan['cpu']:6.2f} | "
+                      f"{full['wall']:7.2f} / {full['cpu']:6.2f} | {inproc['steps_only']:8.2f} {inproc['with_graph']:8.2f} "
+                      f"{inproc['svg']:8.2f}    | {query['wall']:7.2f} / {query['cpu']:6.2f} | "
+                      f"{pic['width']:,.0f} x {pic['height']:,.0f} px, {drawn}, {pic['bytes'] / 1e3:,.0f} kB", flush=True)
+                verdicts.append((program, size, plan["cpu"]))
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
+    print(f"\ntarget: plan --svg within {TARGET:.0f} s (CPU, start-up included):")
+    for program, size, cpu in verdicts:
+        print(f"  {program} {size:,}: {cpu:.2f} s CPU  " + ("ok" if cpu <= TARGET else f"MISS ({cpu / TARGET:.2f}x)"))
+
+
+if __name__ == "__main__":
+    main()
