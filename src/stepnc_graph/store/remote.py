@@ -375,6 +375,11 @@ class RemoteStore:
             sparql = "".join(f"PREFIX {p}: <{iri}>\n" for p, iri in prefixes.items()) + sparql
         if options.get("use_default_graph_as_union") and default_graph is None:
             default_graph = [ox.NamedNode(g) for g in self.all_graphs()]
+        if default_graph is not None and named_graphs is None:
+            # pyoxigraph's meaning: no list of named graphs is every graph of the store. The
+            # protocol's is none at all once default-graph-uri is given (SPARQL 1.1 Protocol
+            # 2.1.4), which left GRAPH ?g empty: name them all.
+            named_graphs = [ox.NamedNode(g) for g in self.all_graphs()]
         form: list[tuple[str, str]] = [("query", sparql)]
         form += [("default-graph-uri", _value(g)) for g in default_graph or ()]
         form += [("named-graph-uri", _value(g)) for g in named_graphs or ()]
