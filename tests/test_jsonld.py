@@ -1121,6 +1121,39 @@ def test_a_graph_whose_part21_would_not_read_back_is_refused(edit: Any, message:
     assert store.graphs() == []
 
 
+EDITION3 = ROOT / "tests" / "fixtures" / "p21" / "pass_edition3.stp"
+
+
+def _set(node_id: str, key: str, value: Any) -> Any:
+    def edit(doc: Any) -> None:
+        node(doc, node_id)[key] = value
+    return edit
+
+
+@pytest.mark.parametrize("edit, message", [
+    # found by the 100k fuzz run (input 18836, jsonld-list): rdf:nil for a section's text, written
+    # into the file as a line "http://www.w3.org/1999/02/22-rdf-syntax-ns#nil"
+    (_set("section2", "p21:sectionText", {"@list": []}), r"section2> has p21:sectionText .*nil.*not a literal"),
+    (_set("section2", "p21:sectionText", "not a section"), r"does not read back as Part 21"),
+    (_set("section2", "p21:sectionText", "DATA;\n#77=PROJECT('X',$,(),$,$,$);"), r"holds 1 instance\(s\) of its own"),
+    (_set("https://w3id.org/stepnc-graph/data/pass_edition3.stp", "p21:anchorSectionText", "ANCHOR;\n<a>=#3;"), r"does not read back as Part 21"),
+    (_set("https://w3id.org/stepnc-graph/data/pass_edition3.stp", "p21:headerText", "HEADER;\nFILE_NAME("), r"does not read back as Part 21"),
+], ids=["section-iri", "section-garbage", "section-instance", "anchor-unclosed", "header-cut"])
+def test_kept_header_and_section_text_that_would_not_read_back_is_refused(edit: Any, message: str,
+                                                                          tmp_path: Path) -> None:
+    """Before: loaded, and the export had a line that is no Part 21 (or an instance no node stands for)."""
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [EDITION3])
+    doc = json.loads(sg.export(store, "jsonld", r.graph))
+    edit(doc)
+    path = tmp_path / "edited.jsonld"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    other = sg.open_store(memory=True)
+    with pytest.raises(JsonLdError, match="cannot be written back as Part 21: .*" + message):
+        sg.load(other, [path], base_iri="https://example.com/edited")
+    assert other.graphs() == []
+
+
 def test_the_damaged_example_still_goes_through_json_ld_and_back(tmp_path: Path) -> None:
     """The checks above refuse nothing a lenient load of a real damaged file writes."""
     path = tmp_path / "damaged.jsonld"

@@ -46,7 +46,7 @@ from stepnc_graph.core.naming import P21_NS
 from stepnc_graph.part21.diagnostics import Part21SyntaxError
 from stepnc_graph.part21.format import FormatError
 from stepnc_graph.part21.format import format_real as part21_real
-from stepnc_graph.part21.reader import read_instance
+from stepnc_graph.part21.reader import read_instance, read_text
 from stepnc_graph.part21.strings import encode
 
 _TRAILING_ID = re.compile(r"i([0-9]+)$")
@@ -108,7 +108,9 @@ class Part21Writer:
         # edition 3: ANCHOR and REFERENCE sections verbatim (ids are kept, so they still hold)
         extra = "".join(f"{t}\n" for t in (text("anchorSectionText"), text("referenceSectionText")) if t)
         texts = self._unreadable_texts(meta) if graph is not None else []
-        body = "".join(f"{opener}\n" + "\n".join(parts) + "\nENDSEC;\n" for opener, parts in self._sections(instances, texts))
+        sections = self._sections(instances, texts)
+        _check_frame(graph, header, extra, [opener for opener, _ in sections])
+        body = "".join(f"{opener}\n" + "\n".join(parts) + "\nENDSEC;\n" for opener, parts in sections)
         return "ISO-10303-21;\n" + header + "\n" + extra + body + "END-ISO-10303-21;\n"
 
     def _sections(self, instances: list[tuple[int, str]],
@@ -139,9 +141,15 @@ class Part21Writer:
         return out
 
     def _first(self, key: str, term: str) -> str | None:
-        """The value of the node's first ``p21:<term>`` triple, if it has one."""
+        """The value of the node's first ``p21:<term>`` triple, if it has one: a literal's text (an
+        IRI or blank node where text belongs -- a graph edited by hand or a damaged JSON-LD
+        document -- would be written into the file as if it were Part 21)."""
         values = self.props.get(key, {}).get(f"<{P21_NS}{term}>")
-        return str(values[0].value) if values else None
+        if not values:
+            return None
+        if not isinstance(values[0], ox.Literal):
+            raise WriteError(f"{key} has p21:{term} {values[0]}, which is not a literal")
+        return str(values[0].value)
 
     def _schemas(self, props: dict[str, Any], graph: str | None) -> list[str]:
         if graph is not None and f"<{graph}>" in props:
@@ -312,6 +320,23 @@ class Part21Writer:
         if dt == XSD + "hexBinary":
             return f'"0{lit.value}"'
         return encode(lit.value)
+
+
+def _check_frame(graph: str | None, header: str, extra: str, openers: list[str]) -> None:
+    """Refuse kept text that would not read back as what it stands for: the header, the ANCHOR and
+    REFERENCE sections and each DATA section's opening are written verbatim from the graph, so a
+    graph edited by hand (or a damaged JSON-LD document) could make them anything -- a broken file,
+    or instances no instance node stands for. The frame alone (no instances) must read strictly as
+    a Part 21 file with no instances; it is a few lines, so this costs nothing next to the body."""
+    frame = "ISO-10303-21;\n" + header + "\n" + extra + "".join(f"{o}\nENDSEC;\n" for o in openers) + "END-ISO-10303-21;\n"
+    where = f"<{graph}>" if graph is not None else "the graph"
+    try:
+        found = sum(1 for _ in read_text(frame, "frame").instances())
+    except Part21SyntaxError as e:
+        raise WriteError(f"{where}: its kept header or section text does not read back as Part 21 ({e.message}: "
+                         f"{e.text.strip() if e.text else ''})") from None
+    if found:
+        raise WriteError(f"{where}: its kept header or section text holds {found} instance(s) of its own")
 
 
 def write_graph(plans: Plans, quads: Iterable[ox.Quad], graph: str | None = None) -> str:
