@@ -517,3 +517,14 @@ def test_a_huge_integer_is_a_positioned_error_never_a_traceback(data: str, p21_i
     assert validate.returncode == 1 and "Traceback" not in validate.stderr + validate.stdout, validate.stderr
     [result] = [line for line in validate.stdout.splitlines() if "5000 digits" in line]  # a positioned result
     assert result.split()[:2] == ["line", "2"] and (p21_id is None or f"#{p21_id}" in result)
+
+
+def test_the_fuzz_check_reads_section_keywords_in_any_case() -> None:
+    """Names are case-insensitive (docs/loading.md), so the reader reads ``eNDSEC;`` as ENDSEC; the
+    check said that text was lost (the fuzz run's input 36678)."""
+    from stepnc_graph.testing.fuzz import check
+
+    text = EXAMPLE.read_text(encoding="utf-8")
+    assert text.count("\nENDSEC;") >= 2
+    damaged = text[::-1].replace("\n;CESDNE", "\n;CESDNe", 1)[::-1]  # the last ENDSEC, of DATA
+    assert check(damaged.encode("utf-8")).status == "ok"

@@ -878,6 +878,45 @@ def test_nesting_beyond_the_limit_is_refused_where_it_starts(tmp_path: Path) -> 
     assert f"deeper than {MAX_DEPTH}" in error.message
 
 
+def test_an_overlong_id_is_refused_where_it_is(tmp_path: Path) -> None:
+    """Before: a 1 MB document whose graph @id was 1 MB took 60 CPU-s (the fuzz run's input 40105):
+    every quad repeats the graph's IRI."""
+    from stepnc_graph.loading.jsonld import MAX_IRI
+
+    doc = small_doc()
+    doc["@id"] = "https://example.com/" + "a" * MAX_IRI
+    error = refused(doc, tmp_path, json.dumps(doc))
+    assert f"an @id of {len(doc['@id']):,} characters" in error.message and error.pointer == "/@id"
+    i3 = doc["@graph"].index(node(doc, "i3"))
+    doc = small_doc()
+    node(doc, "i3")["@id"] = "https://example.com/" + "b" * MAX_IRI
+    error = refused(doc, tmp_path, json.dumps(doc))
+    assert error.pointer == f"/@graph/{i3}/@id"
+
+
+def test_an_id_of_the_longest_length_loads(tmp_path: Path) -> None:
+    from stepnc_graph.loading.jsonld import MAX_IRI
+
+    doc = small_doc()
+    doc["@id"] = "https://example.com/" + "a" * (MAX_IRI - len("https://example.com/"))
+    path = tmp_path / "long.jsonld"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    [r] = sg.load(sg.open_store(memory=True), [path])
+    assert r.graph == doc["@id"]
+
+
+def test_an_id_urllib_cannot_split_is_a_documented_error(tmp_path: Path) -> None:
+    """Before: ValueError("Invalid IPv6 URL") from urljoin, a traceback (the fuzz run's input 31524)."""
+    doc = small_doc()
+    doc["@context"] = [doc["@context"], {"@base": "https://example.com/"}] if not isinstance(
+        doc["@context"], list) else [*doc["@context"], {"@base": "https://example.com/"}]
+    doc["@id"] = "http://[::1/x"
+    path = tmp_path / "ipv6.jsonld"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(JsonLdError, match="http://\\[::1/x"):
+        sg.load(sg.open_store(memory=True), [path])
+
+
 def test_nesting_within_the_limit_loads(tmp_path: Path) -> None:
     doc = small_doc()
     deep: Any = "x"

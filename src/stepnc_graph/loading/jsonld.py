@@ -22,8 +22,8 @@ keyword, a bad language tag. The document is therefore read twice by the process
 JSON-LD says, and leniently (invalid IRIs kept). When the two differ, the load is refused,
 naming each invalid value and where it is. JSON reading refuses a key given twice in one
 object (JSON keeps the last), a number JSON-LD would turn into an ``xsd:double`` that cannot
-hold it, and nesting deeper than :data:`MAX_DEPTH`. Messages speak of the document (its JSON
-pointers, its values), not of the code that read it.
+hold it, nesting deeper than :data:`MAX_DEPTH` and an ``@id`` longer than :data:`MAX_IRI`.
+Messages speak of the document (its JSON pointers, its values), not of the code that read it.
 
 **Which graph.** The document names its graph (the top-level ``@id`` of an
 export); it is loaded as that graph, unless ``--base-iri`` gives another, in
@@ -76,6 +76,11 @@ LOAD_PREDICATES = frozenset({
 CHUNK_TRIPLES = 20000
 #: arrays and objects nested deeper than this are refused (an export nests about 15 levels)
 MAX_DEPTH = 500
+#: the longest ``@id`` read (characters): every statement about a node -- about every node, for
+#: the graph's own ``@id`` -- repeats its IRI, so a document of 1 MB whose ``@id`` was 1 MB took
+#: 60 CPU-s and gigabytes to load (found by the fuzz harness); real IRIs are far shorter (HTTP
+#: servers commonly refuse request lines over 8 KiB)
+MAX_IRI = 16_384
 #: an integer written with at most this many digits (no fraction, no exponent) is an exact
 #: ``xsd:integer``; a longer one is read by JSON-LD as an ``xsd:double``
 INTEGER_DIGITS = 20
@@ -465,6 +470,10 @@ def local_contexts(doc: Any, name: str) -> Any:
             continue
         for key in value:
             _check_key(key, path, name)
+        node_id = value.get("@id")
+        if type(node_id) is str and len(node_id) > MAX_IRI:
+            raise JsonLdError(f"an @id of {len(node_id):,} characters (at most {MAX_IRI:,}): every statement "
+                              "about the node would repeat it", name, pointer=pointer((path, "@id")))
         if "@context" in value:
             value["@context"] = contexts.context(value["@context"], (path, "@context"))
             if not in_context:
@@ -720,8 +729,8 @@ def named_graph_of(path: Path) -> str | None:
         return None
     from urllib.parse import urljoin
 
-    iri = urljoin(bases[-1], doc["@id"]) if bases else str(doc["@id"])
-    try:
+    try:  # urljoin raises ValueError too ("Invalid IPv6 URL" for a '[' in the authority)
+        iri = urljoin(bases[-1], doc["@id"]) if bases else str(doc["@id"])
         ox.NamedNode(iri)
     except ValueError:
         return None

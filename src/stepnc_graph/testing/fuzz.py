@@ -170,10 +170,10 @@ class Outcome:
 
 
 #: what may lie between the kept texts of the DATA sections, once comments are taken out:
-#: white space, section keywords, DATA openers (with their parameters, strings and one level of
+#: white space, section keywords (in any case: the reader reads names so), DATA openers (with their parameters, strings and one level of
 #: nested lists; a ';' the reader reported missing), the end marker, signatures, EXPRESS remarks
 _STRING = r"'(?:[^']|'')*'"
-_STRUCTURE = re.compile(rf"(?:\s+|ENDSEC\s*;?|DATA\s*(?:\((?:{_STRING}|[^()']|\((?:{_STRING}|[^()'])*\))*\))?\s*;?|"
+_STRUCTURE = re.compile(rf"(?:\s+|(?i:ENDSEC)\s*;?|(?i:DATA)\s*(?:\((?:{_STRING}|[^()']|\((?:{_STRING}|[^()'])*\))*\))?\s*;?|"
                         r"END-ISO-10303-21\s*;?|SIGNATURE\b.*?\bENDSEC\s*;|\(\*.*?\*\))*+", re.S)  # possessive
 _COMMENT = re.compile(r"/\*.*?\*/", re.S)
 
