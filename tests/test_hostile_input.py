@@ -528,3 +528,25 @@ def test_the_fuzz_check_reads_section_keywords_in_any_case() -> None:
     assert text.count("\nENDSEC;") >= 2
     damaged = text[::-1].replace("\n;CESDNE", "\n;CESDNe", 1)[::-1]  # the last ENDSEC, of DATA
     assert check(damaged.encode("utf-8")).status == "ok"
+
+
+def test_a_data_opener_lenient_mode_repaired_exports_strict_part21_and_keeps_the_text(tmp_path: Path) -> None:
+    """Before: the opener was kept verbatim (``(MACHINING_SCHEMA)``, a bare name lenient mode reads
+    as an enumeration) and the export did not read strictly (the fuzz run's input 52991)."""
+    import stepnc_graph as sg
+    from stepnc_graph.testing.fuzz import check
+
+    text = (ROOT / "tests" / "fixtures" / "p21" / "pass_edition3.stp").read_text(encoding="utf-8")
+    bad = "DATA('geometry',(MACHINING_SCHEMA));"
+    damaged = text.replace("DATA('geometry',('MACHINING_SCHEMA'));", bad)
+    assert damaged != text
+    path = tmp_path / "opener.stp"
+    path.write_text(damaged, encoding="utf-8")
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [path], lenient=True)
+    assert any(d.code == "P21-BARE-ENUM" for d in r.diagnostics)
+    exported = sg.export(store, "p21", r.graph).decode("utf-8")
+    assert "DATA('geometry',(.MACHINING_SCHEMA.));" in exported
+    assert f"this DATA section's opening as read: {bad}" in exported
+    assert len(list(read_text(exported, "exported.stp").instances())) == 6
+    assert check(damaged.encode("utf-8")).status == "ok"

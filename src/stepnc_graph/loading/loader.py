@@ -42,7 +42,7 @@ from stepnc_graph.core.naming import (
     section_iri,
 )
 from stepnc_graph.part21.diagnostics import Diagnostic
-from stepnc_graph.part21.format import format_header
+from stepnc_graph.part21.format import format_header, format_value
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.loading.sources import Source
@@ -315,8 +315,16 @@ class _Load:
             for i, text in enumerate(h.data_section_texts):
                 sec = f"<{self.mapper.section(i)}>"
                 out += [f"{sec} {T.RDF_TYPE} <{P21_NS}DataSection> .\n",
-                        f"{sec} <{P21_NS}sectionIndex> {T.integer(i + 1)} .\n",
-                        f"{sec} <{P21_NS}sectionText> {T.string(text)} .\n"]
+                        f"{sec} <{P21_NS}sectionIndex> {T.integer(i + 1)} .\n"]
+                if i < len(h.data_section_repaired) and h.data_section_repaired[i]:
+                    # lenient mode read the opener by repairing it: the repaired text is what an
+                    # export writes (it must read strictly), the text as read is kept beside it
+                    params = h.data_sections[i]
+                    repaired = f"DATA({','.join(format_value(v) for v in params)});" if params else "DATA;"
+                    out += [f"{sec} <{P21_NS}sectionText> {T.string(repaired)} .\n",
+                            f"{sec} <{P21_NS}rawText> {T.string(text)} .\n"]
+                else:
+                    out.append(f"{sec} <{P21_NS}sectionText> {T.string(text)} .\n")
         return out
 
     def schema_diagnostics(self) -> list[Diagnostic]:

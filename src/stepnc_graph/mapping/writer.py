@@ -122,6 +122,9 @@ class Part21Writer:
         keys = set(section_of.values()) | {s for s, _, _ in texts if s is not None}
         order = sorted(keys, key=lambda s: int(self._first(s, "sectionIndex") or 0)) or [""]
         members: dict[str, list[str]] = {s: [] for s in order}
+        for s in order:  # an opener lenient mode repaired: the text as read, in a comment
+            if raw := (self._first(s, "rawText") if s else None):
+                members[s].append(comment(f"stepnc-graph: this DATA section's opening as read: {raw}"))
         for i, key in instances:
             members[section_of.get(key, order[0])].append(self._instance(i, key))
         for section, _, text in sorted(texts, key=lambda t: t[1]):

@@ -140,6 +140,9 @@ class Header:
     text: str = ""  # the section verbatim, from HEADER to ENDSEC;
     #: edition 3: the DATA section openers verbatim (``DATA;``, ``DATA('a',('S'));``)
     data_section_texts: list[str] = field(default_factory=list)
+    #: lenient mode repaired the opener's parameters (a bare schema name): its text is not valid
+    #: Part 21, :func:`stepnc_graph.part21.format.format_value` of ``data_sections`` is
+    data_section_repaired: list[bool] = field(default_factory=list)
     #: edition 3: anchors (name without <>, instance id) that name an instance
     anchors: list[tuple[str, int]] = field(default_factory=list)
     anchor_text: str = ""  # the ANCHOR section verbatim ("" when absent)
@@ -491,8 +494,10 @@ class Part21Reader:
         kind, tok, start, end = self._token(pos)
         if kind == "kw" and tok.upper() == "DATA":
             params: list[Any] = []
+            first = len(self.diagnostics)
             if self._token(end)[1] == "(":
                 params, end = self._params(end, None)
+            repaired = len(self.diagnostics) > first
             try:
                 end = self._expect(end, ";")
                 opener = self.text[start:end]
@@ -503,6 +508,7 @@ class Part21Reader:
                 opener = self.text[start:end] + ";"
             self.header.data_sections.append(params)
             self.header.data_section_texts.append(opener)
+            self.header.data_section_repaired.append(repaired)
             return end
         m = _END.match(self.text, start)
         if m is not None:
@@ -575,6 +581,7 @@ class Part21Reader:
                 if not self.header.data_sections:
                     self.header.data_sections.append([])
                     self.header.data_section_texts.append("DATA;")
+                    self.header.data_section_repaired.append(False)
                 self._stray = True
                 return start
             section = max(len(self.header.data_sections) - 1, 0)
