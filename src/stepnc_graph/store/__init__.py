@@ -87,13 +87,18 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO, Protocol
+from typing import Any, BinaryIO
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.store.handoff import Handoff
 from stepnc_graph.store.kept import BLANK_OBJECT, KeptText, KeptTexts, KeptWriting, read_without_blank_nodes
-from stepnc_graph.core.naming import P21_NS, STAGING, VOCABULARY_GRAPH, GraphLayout, refuse_strangers
+from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, refuse_strangers
+from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Maintenance, Shadow, Store
+
+__all__ = ["Capabilities", "Chunk", "Companion", "GraphStore", "Maintenance", "Shadow", "Store", "StoreBusy",
+           "StoreError", "StoreWriteError", "Writer", "default_store_path", "open_store"]
 
 STORE_ENV = "STEPNC_GRAPH_STORE"
 DEFAULT_STORE = ".stepnc-graph"
@@ -179,75 +184,23 @@ def default_store_path() -> Path:
     return Path(os.environ.get(STORE_ENV) or DEFAULT_STORE)
 
 
-@dataclass(frozen=True)
-class Companion:
-    """Text for a companion graph of a load (its derived layer), met among the load's chunks.
+def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,
+               create: bool | None = None, wait: bool | float = False,
+               on_wait: Callable[[Writer], None] | None = None) -> GraphStore:
+    """The on-disk store at ``path`` (default: ``$STEPNC_GRAPH_STORE`` or ``./.stepnc-graph``), or an in-memory one.
 
-    A companion chunk is loaded where its graph is written now (a staging graph
-    during an in-memory or remote replacement), so a loader can write the
-    companion while it streams the main graph instead of keeping it for later.
+    A store opened for writing (the default) holds the store's writer lock until
+    it is closed (use ``with``); another writer gets :class:`StoreBusy`, or waits
+    with ``wait``. ``readonly=True`` reads the last published state without
+    blocking anyone and never creates a store (``create`` defaults to ``not readonly``).
     """
-
-    graph: str
-    text: str
-
-
-@dataclass(frozen=True)
-class Shadow:
-    """Lines of a companion graph that the load writes later as quads (``before_commit``), met
-    among the load's chunks as text whose blank nodes are named as in the main graph's chunks.
-
-    A store does not load them: a blank node cannot be named across documents, so the load
-    writes those quads itself. A replacement compares them, with the rest of the load's text,
-    against the version in the store (:meth:`GraphStore._stage`).
-    """
-
-    graph: str
-    text: str
+    if memory:
+        return GraphStore(None)
+    return GraphStore(path or default_store_path(), readonly=readonly,
+                      create=not readonly if create is None else create, wait=wait, on_wait=on_wait)
 
 
-Chunk = str | Companion | Shadow
-
-
-class Store(Protocol):
-    """What loading, export, info and queries need of a store: the embedded
-    :class:`GraphStore` or a :class:`~stepnc_graph.store.remote.RemoteStore`."""
-
-    path: Path | None
-    last_removal: str | None
-
-    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
-                      before_commit: Callable[[Callable[[str], str]], None] | None = None,
-                      companions: Sequence[str] = ()) -> None: ...
-
-    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool: ...
-
-    def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None: ...
-
-    def add_turtle(self, graph: str, text: str) -> None: ...
-
-    def update(self, sparql: str) -> None: ...
-
-    def graphs(self) -> list[str]: ...
-
-    def all_graphs(self) -> list[str]: ...
-
-    def has_graph(self, graph: str) -> bool: ...
-
-    def query(self, sparql: str, **kwargs: Any) -> Any: ...
-
-    def count(self, graph: str | None = None) -> int: ...
-
-    def quads(self, graph: str | None = None) -> Iterator[ox.Quad]: ...
-
-    def close(self) -> None: ...
-
-    def __enter__(self) -> Any: ...
-
-    def __exit__(self, *exc: object) -> None: ...
-
-
-class StoreError(Exception):
+class StoreError(StepncGraphError):
     """A store directory that cannot be used (not a store, newer format, missing, not writable)."""
 
 
@@ -1485,10 +1438,28 @@ class GraphStore:
 
     # -- reading ------------------------------------------------------------------------
 
-    def graphs(self) -> list[str]:
-        """The loaded files' graphs (and graphs users or `link` added): not staging graphs, the
-        vocabulary graph or a program's derived layer (see :func:`graph_layout`)."""
-        return graph_layout(self).listed()
+    @property
+    def capabilities(self) -> Capabilities:
+        """On disk: persistent and compactable; both embed Oxigraph (blank nodes as given, cheap reads)."""
+        on_disk = self.path is not None
+        return Capabilities(persistent=on_disk, blank_node_writes=True, local_reads=True, compactable=on_disk)
+
+    @property
+    def location(self) -> str:
+        """The store's absolute directory, or "memory"."""
+        return str(self.path.resolve()) if self.path is not None else "memory"
+
+    def maintenance(self) -> Maintenance:
+        """Deleted quads waiting for a compaction and bytes on disk (0 and 0 in memory)."""
+        return Maintenance(self.deleted_quads, self.disk_bytes())
+
+    def local_copy(self, graphs: str | Sequence[str] | None = None) -> GraphStore:
+        """An in-memory store holding a copy of ``graphs`` (one, several, or every graph)."""
+        copy = GraphStore(None)
+        names = self.all_graphs() if graphs is None else [graphs] if isinstance(graphs, str) else graphs
+        for name in names:
+            copy._db.bulk_extend(self.quads(name))
+        return copy
 
     def all_graphs(self) -> list[str]:
         """Every named graph but staging ones: with the vocabulary and the derived layers."""
@@ -1726,25 +1697,6 @@ class _BlankMatch:
         if was is None:
             was = self.renamed[label] = uuid.uuid4().hex.encode("ascii")
         return was
-
-
-def graph_layout(store: Store) -> GraphLayout:
-    """What each named graph of ``store`` is, from its records (:class:`GraphLayout`): the program
-    graphs (``p21:ExchangeStructure``) and the link graphs with their program (``p21:LinkGraph``,
-    ``p21:linkedProgram``). One query, answered from the indexes of those two classes, on any store."""
-    rows = store.query(f"SELECT ?g ?program WHERE {{ GRAPH ?g {{ {{ ?g a <{P21_NS}ExchangeStructure> }} UNION "
-                       f"{{ ?g a <{P21_NS}LinkGraph> ; <{P21_NS}linkedProgram> ?program }} }} }}")
-    programs: set[str] = set()
-    links: dict[str, str] = {}
-    for row in rows:
-        graph, program = row[0], row[1]
-        if not isinstance(graph, ox.NamedNode):
-            continue
-        if program is None:
-            programs.add(graph.value)
-        elif isinstance(program, ox.NamedNode):
-            links[graph.value] = program.value
-    return GraphLayout(frozenset(store.all_graphs()), frozenset(programs), links)
 
 
 def directory_bytes(path: Path) -> int:
