@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from stepnc_graph.core.formats import QUERY_RESULT_FORMATS
 from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
@@ -29,7 +30,7 @@ from stepnc_graph.cli.common import (
 if TYPE_CHECKING:
     from stepnc_graph.store import Store
 
-FORMATS = ("table", "csv", "tsv", "json", "md")
+FORMATS = QUERY_RESULT_FORMATS
 
 
 def _fail(message: str) -> None:

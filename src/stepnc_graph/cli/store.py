@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
+from stepnc_graph.core.formats import export_format_names
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_NONCONFORMING,
@@ -180,7 +181,7 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @with_endpoint
 @click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
                                             "or the only one.")
-@click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21"]),
+@click.option("--format", "fmt", type=click.Choice(export_format_names()),
               required=True, help="p21 writes the graph back as a Part 21 file; jsonld-tree frames a program as a "
                                   "tree (project, workplans, workingsteps, operation, tool, feature).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,

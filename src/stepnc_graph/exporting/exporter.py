@@ -18,6 +18,7 @@ from typing import Any
 import pyoxigraph as ox
 
 from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.formats import EXPORT_FORMATS, export_format, export_format_names
 from stepnc_graph.generators.context import context
 from stepnc_graph.mapping.plans import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
@@ -25,10 +26,9 @@ from stepnc_graph.core.naming import P21_NS, listed_graphs
 from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.store.contract import Store
 
-FORMATS = ("ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21")
-_OX = {"ttl": ox.RdfFormat.TURTLE, "nt": ox.RdfFormat.N_TRIPLES, "nq": ox.RdfFormat.N_QUADS,
-       "trig": ox.RdfFormat.TRIG}
-QUAD_FORMATS = ("nq", "trig")
+#: the export formats' names (:data:`~stepnc_graph.core.formats.EXPORT_FORMATS`)
+FORMATS = export_format_names()
+QUAD_FORMATS = tuple(f.name for f in EXPORT_FORMATS if f.quads)
 
 
 class ExportError(StepncGraphError, ValueError):
@@ -41,11 +41,12 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
     Triple formats (ttl, nt, jsonld of one graph, p21) need a graph unless the
     store holds exactly one; nq and trig keep graph names.
     """
-    if fmt not in FORMATS:
+    chosen = export_format(fmt)
+    if chosen is None:
         raise ExportError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
     if graph is not None and not store.has_graph(graph):
         raise ExportError(f"no graph {graph} in the store")
-    if graph is None and fmt in ("ttl", "nt", "p21"):
+    if graph is None and chosen.one_graph:
         graphs = listed_graphs(store)
         if len(graphs) != 1:
             raise ExportError(f"--format {fmt} writes one graph and the store has {len(graphs)}; choose one with "
@@ -56,10 +57,10 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
     # the canonical order walks the graph node by node: a remote graph is copied here first
     local = store if store.capabilities.local_reads else store.local_copy(graph)
-    if fmt in ("jsonld", "jsonld-tree"):
+    if chosen.rdf is None:  # JSON-LD, compacted or framed
         return _jsonld(local, graph, fmt == "jsonld-tree")
     prefixes = context(iso14649()[0].naming)
-    return _serialize(_OX[fmt], canonical_quads(local, graph), fmt not in QUAD_FORMATS, prefixes)
+    return _serialize(getattr(ox.RdfFormat, chosen.rdf), canonical_quads(local, graph), not chosen.quads, prefixes)
 
 
 def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,

@@ -57,6 +57,7 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.formats import INPUT_FORMATS
 from stepnc_graph.core.version import __version__
 from stepnc_graph.loading.common import DCT, PROV, RDFS, LoadResult, Progress, load_time
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
@@ -65,7 +66,7 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.loading.common import Source, SourceError
 from stepnc_graph.store import Store
 
-SUFFIXES = (".jsonld",)
+SUFFIXES = next(f.suffixes for f in INPUT_FORMATS if f.name == "jsonld")
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
 XSD = "http://www.w3.org/2001/XMLSchema#"
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"

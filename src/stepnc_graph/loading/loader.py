@@ -42,6 +42,7 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.format import format_header
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
+from stepnc_graph.core.formats import reads_as
 from stepnc_graph.loading.sources import plan_sources, refuse_replacing_other_files
 from stepnc_graph.loading.common import DCT, OWL_SAME_AS, PROV, RDFS, LoadResult, Progress, Source, load_time
 from stepnc_graph.core.naming import graph_layout
@@ -345,7 +346,7 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
     validation reads (shapes see the program graph alone). ``positions=False``
     (Part 21 only) writes no ``p21:id``/``p21:line`` triples and returns the lines
     in :attr:`LoadResult.lines` instead, for the same use."""
-    if source.path is not None and source.path.suffix.lower() == ".jsonld":
+    if source.path is not None and reads_as(source.path, "jsonld"):
         from stepnc_graph.loading.jsonld import JsonLdLoad
 
         job: _Load | JsonLdLoad = JsonLdLoad.of_source(source, progress)

@@ -16,6 +16,7 @@ from urllib.parse import quote
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.formats import input_suffixes, reads_as
 from stepnc_graph.core.naming import DATA_BASE, instance_prefix
 from stepnc_graph.loading.common import Source, SourceError, check_iri
 from stepnc_graph.store import Store
@@ -23,7 +24,7 @@ from stepnc_graph.store import Store
 __all__ = ["STDIN", "SUFFIXES", "Source", "SourceError", "check_iri", "plan_sources", "refuse_replacing_other_files"]
 
 #: file name endings of Part 21 programs, and of program graphs in JSON-LD, compared case-insensitively
-SUFFIXES = (".stp", ".step", ".p21", ".jsonld")
+SUFFIXES = input_suffixes()
 STDIN = "-"
 
 
@@ -66,7 +67,7 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
             graph = base_iri
         else:
             graph = (instance_prefix(base_iri) if base_iri is not None else DATA_BASE) + local
-        if path is not None and base_iri is None and path.suffix.lower() == ".jsonld":
+        if path is not None and base_iri is None and reads_as(path, "jsonld"):
             from stepnc_graph.loading.jsonld import named_graph_of  # a JSON-LD document names its graph
 
             graph = named_graph_of(path) or graph

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 import pyoxigraph as ox
 
 from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.formats import QUERY_RESULT_FORMATS
 from stepnc_graph.core.naming import (
     ANALYSIS_NS,
     ATTRIBUTE_NS,
@@ -77,7 +78,7 @@ PREFIXES: dict[str, str] = {
 }
 #: Prefixes used to shorten IRIs in the ``table`` and ``md`` formats only.
 DISPLAY_PREFIXES = {**PREFIXES, "data": DATA_BASE}
-FORMATS = ("table", "csv", "tsv", "json", "md")
+FORMATS = QUERY_RESULT_FORMATS
 PARAM_TYPES = ("class", "iri", "string", "integer", "decimal", "boolean")
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 _PARAM = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\((?P<type>[a-z]+)\)\s*"
