@@ -391,7 +391,7 @@ def test_a_layer_written_in_pieces_is_the_layer_written_whole(tmp_path: Path, mo
     from rdflib.compare import isomorphic
 
     from stepnc_graph.loading import derive as derive_module
-    from stepnc_graph import store as store_module
+    from stepnc_graph.store import tuning
 
     RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
 
@@ -408,8 +408,8 @@ def test_a_layer_written_in_pieces_is_the_layer_written_whole(tmp_path: Path, mo
 
     whole, whole_count = loaded("whole")
     monkeypatch.setattr(derive_module, "TEXT_PIECE", 300)
-    monkeypatch.setattr(store_module, "TRANSACTION_QUADS", 3)
-    monkeypatch.setattr(store_module, "INSERT_BATCH", 5)
+    monkeypatch.setattr(tuning, "TRANSACTION_QUADS", 3)
+    monkeypatch.setattr(tuning, "INSERT_BATCH", 5)
     pieces, pieces_count = loaded("pieces")
     layer_of = rdflib.URIRef(ANALYSIS_NS + "layerOf-derived")
     step = rdflib.URIRef(ANALYSIS_NS + "ExecutionStep")

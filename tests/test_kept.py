@@ -16,7 +16,8 @@ import stepnc_graph as sg
 from stepnc_graph.store import kept as kept_module
 from stepnc_graph.store.kept import KeptTexts, read_without_blank_nodes
 from stepnc_graph.core.naming import derived_graph_iri
-from stepnc_graph.store import GraphStore, _has_blank
+from stepnc_graph.store import GraphStore
+from stepnc_graph.store.difference import has_blank
 
 from test_store import EXAMPLE, G, assert_as_a_fresh_load, copies
 
@@ -253,7 +254,7 @@ def test_reading_a_kept_text_separates_the_lines_with_a_blank_node(tmp_path_fact
     with pytest.MonkeyPatch.context() as m:
         m.setattr(kept_module, "BLOCK", block)
         found = read_without_blank_nodes(path, out)
-    blank = [line for line in lines if _has_blank(line)]
-    assert out.getvalue() == b"".join(line for line in lines if not _has_blank(line))
+    blank = [line for line in lines if has_blank(line)]
+    assert out.getvalue() == b"".join(line for line in lines if not has_blank(line))
     assert (found.lines, found.blank) == (len(lines) - len(blank), len(blank))
     assert found.predicates == {line.split(b" ")[1] for line in blank}

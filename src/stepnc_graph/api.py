@@ -72,7 +72,7 @@ def unload(store: Store, graph: str, compact: bool = False) -> bool:
     comes from the store's records (:meth:`~stepnc_graph.core.naming.GraphLayout.unloaded_with`), so
     another program is never removed with it; the vocabulary graph and a derived layer on its
     own raise :class:`~stepnc_graph.core.naming.GraphNameError`. Beside other programs the store
-    compacts once enough was deleted (:data:`~stepnc_graph.store.COMPACT_AT`); ``compact`` gives
+    compacts once enough was deleted (:data:`~stepnc_graph.store.tuning.COMPACT_AT`); ``compact`` gives
     the space back now."""
     companions = graph_layout(store).unloaded_with(graph)
     return store.remove_graph(graph, companions=companions, compact=compact)

@@ -91,7 +91,7 @@ XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
 #: the layer's format: what the library queries expect to find (``sga:layerVersion`` on the layer).
 #: 2: steps carry their program, workingstep #id, operation #id and class; class counts
 LAYER_VERSION = 2
-#: characters of layer text per bulk-load call: the store's own batch (see store.BATCH_CHARS)
+#: characters of layer text per bulk-load call: the store's own batch (see store.tuning.BATCH_CHARS)
 TEXT_PIECE = 12_000_000
 
 #: Program structures whose members run in a given order (a LIST) or in no
