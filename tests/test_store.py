@@ -21,7 +21,9 @@ import pytest
 
 import stepnc_graph as sg
 from stepnc_graph import store as store_module
-from stepnc_graph.store import batches, difference, tuning
+from stepnc_graph.store import batches, difference, replacement, tuning
+from stepnc_graph.store.removal import Removal
+from stepnc_graph.store.replacement import Replacement
 from stepnc_graph.store.handoff import Handoff
 from stepnc_graph.core.naming import VOCABULARY_GRAPH
 from stepnc_graph.store import GraphStore, StoreBusy, StoreError
@@ -83,24 +85,24 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
     deleted: list[int] = []
     running: list[int] = []  # deletes under way, as the threads saw them
     flushes: list[int] = []  # deletes under way at each flush
-    real, real_flush = GraphStore._delete_predicate, GraphStore._flush
+    real, real_flush = Removal._delete_predicate, Removal.flush
 
-    def counted(self: GraphStore, item: tuple[ox.NamedNode, str, int]) -> None:
+    def counted(self: Removal, item: tuple[ox.NamedNode, str, int]) -> None:
         node, predicate, n = item
         running.append(1)
-        before = sum(1 for _ in self.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]), None, node))
+        before = sum(1 for _ in self.store.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]), None, node))
         real(self, item)
-        deleted.append(before - sum(1 for _ in self.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]),
-                                                                                None, node)))
+        deleted.append(before - sum(1 for _ in self.store.oxigraph.quads_for_pattern(
+            None, ox.NamedNode(predicate[1:-1]), None, node)))
         assert deleted[-1] == n
         running.append(-1)
 
-    def flush(self: GraphStore) -> None:
+    def flush(self: Removal) -> None:
         flushes.append(sum(running))
         real_flush(self)
 
-    monkeypatch.setattr(GraphStore, "_delete_predicate", counted)
-    monkeypatch.setattr(GraphStore, "_flush", flush)
+    monkeypatch.setattr(Removal, "_delete_predicate", counted)
+    monkeypatch.setattr(Removal, "flush", flush)
     with sg.open_store(tmp_path / "s") as s:
         graphs = copies(s, 4)
         counts = {g: s.count(g) for g in graphs}
@@ -180,10 +182,10 @@ def test_a_failed_unload_keeps_the_count_of_deleted_quads(tmp_path: Path, monkey
         n = program_quads(s, graphs[0])
         assert sg.unload(s, graphs[0]) and s.deleted_quads == n
 
-        def failing(self: GraphStore, item: tuple[ox.NamedNode, str, int]) -> None:
+        def failing(self: Removal, item: tuple[ox.NamedNode, str, int]) -> None:
             raise RuntimeError("disk full (injected)")
 
-        monkeypatch.setattr(GraphStore, "_delete_predicate", failing)
+        monkeypatch.setattr(Removal, "_delete_predicate", failing)
         with pytest.raises(RuntimeError, match="injected"):
             sg.unload(s, graphs[1])
         assert s.deleted_quads == n and s.has_graph(graphs[1])
@@ -514,8 +516,8 @@ def test_a_replacement_flushes_the_tombstones_of_its_deletes(tmp_path: Path, mon
     monkeypatch.setattr(tuning, "DELETE_LINES", 5)
     monkeypatch.setattr(tuning, "FLUSH_DELETES", 10)
     flushes: list[int] = []
-    real = GraphStore._flush
-    monkeypatch.setattr(GraphStore, "_flush", lambda self: (flushes.append(1), real(self)))
+    real = Removal.flush
+    monkeypatch.setattr(Removal, "flush", lambda self: (flushes.append(1), real(self)))
     new = edited(tmp_path)
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
@@ -531,14 +533,14 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     """If the graphs on disk do not end with the staged counts (here: a stray quad the difference
     left), they are dropped and loaded whole from the staged store."""
-    real = GraphStore._apply_difference
+    real = Replacement._apply_difference
 
-    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> dict[str, int]:
+    def apply_and_spoil(self: Replacement, *args: object, **kwargs: object) -> dict[str, int]:
         counts = real(self, *args, **kwargs)  # type: ignore[arg-type]
-        self.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
+        self.store.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
         return counts
 
-    monkeypatch.setattr(GraphStore, "_apply_difference", apply_and_spoil)
+    monkeypatch.setattr(Replacement, "_apply_difference", apply_and_spoil)
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
         sg.load(s, [EXAMPLE])
@@ -551,11 +553,11 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
 def test_a_fallback_that_does_not_add_up_either_changes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """If the graphs loaded whole do not end with the staged counts either (here: one line of
     the new version lost on the way), the replacement fails and the store stays as it was."""
-    real = GraphStore._apply_difference
+    real = Replacement._apply_difference
 
-    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> dict[str, int]:
+    def apply_and_spoil(self: Replacement, *args: object, **kwargs: object) -> dict[str, int]:
         counts = real(self, *args, **kwargs)  # type: ignore[arg-type]
-        self.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
+        self.store.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
         return counts
 
     def lose_a_line(new: dict[str, Path | None], match: object, path: Path) -> Path:
@@ -563,9 +565,9 @@ def test_a_fallback_that_does_not_add_up_either_changes_nothing(tmp_path: Path, 
         path.write_bytes(b"".join(path.read_bytes().splitlines(keepends=True)[1:]))
         return path
 
-    real_relabelled = GraphStore._relabelled
-    monkeypatch.setattr(GraphStore, "_apply_difference", apply_and_spoil)
-    monkeypatch.setattr(GraphStore, "_relabelled", staticmethod(lose_a_line))
+    real_relabelled = Replacement._relabelled
+    monkeypatch.setattr(Replacement, "_apply_difference", apply_and_spoil)
+    monkeypatch.setattr(Replacement, "_relabelled", staticmethod(lose_a_line))
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
         sg.load(s, [EXAMPLE], base_iri=G)
@@ -617,7 +619,7 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
         if when == "while staging":
             monkeypatch.setattr(GraphStore, "_bulk_load", fail_staging)
         elif when == "while writing the old version out":  # beside the staging, on a thread
-            real_dump = GraphStore._dump_graph
+            real_dump = Replacement._dump_graph
 
             def fail_old(store: ox.Store, name: str, path: Path) -> Path | None:
                 if path.name.startswith("old"):
@@ -628,12 +630,12 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
                 raise OSError("disk full (injected)")
 
             # the kept text fails (the old version is then dumped), and so does the dump
-            monkeypatch.setattr(store_module, "read_without_blank_nodes", fail_kept)
-            monkeypatch.setattr(GraphStore, "_dump_graph", staticmethod(fail_old))
+            monkeypatch.setattr(replacement, "read_without_blank_nodes", fail_kept)
+            monkeypatch.setattr(Replacement, "_dump_graph", staticmethod(fail_old))
         elif when == "while deleting what changed":
-            monkeypatch.setattr(GraphStore, "_delete_lines", fail_after(GraphStore._delete_lines))
+            monkeypatch.setattr(Replacement, "_delete_lines", fail_after(Replacement._delete_lines))
         else:
-            monkeypatch.setattr(GraphStore, "_apply_difference", fail_after(GraphStore._apply_difference))
+            monkeypatch.setattr(Replacement, "_apply_difference", fail_after(Replacement._apply_difference))
         with pytest.raises((RuntimeError, OSError), match="injected"):
             sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
         assert quads(s) == before

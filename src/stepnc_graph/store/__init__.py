@@ -40,7 +40,7 @@ graph takes about 7-8 µs and copying the rest of the store into a fresh databas
 ``clear_graph`` cost more still): the time goes into RocksDB's memtable skip list and the
 indexed write batch of a transaction (perf), which a bulk load skips by writing table files.
 So removing a graph either deletes its quads in bounded batches (flat memory, see
-:meth:`GraphStore._delete_in_batches`), or -- when the graph is a large part of the
+:meth:`~stepnc_graph.store.removal.Removal.delete_in_batches`), or -- when the graph is a large part of the
 store -- rebuilds the database from the other graphs, which also gives its disk space
 back at once; whichever costs less by those figures. Deleted quads keep their disk space
 until the database is compacted, and a compaction rewrites all of it, so its cost grows with
@@ -48,7 +48,7 @@ the store, not with the program: an unload compacts once the quads deleted since
 compaction reach a third of the store (:data:`~stepnc_graph.store.tuning.COMPACT_AT`; ``unload --compact`` at once).
 Beside three programs of its size an unload then costs about one load (its deletes), and 1.5
 loads when it compacts. A replacement there writes only what changed
-(:meth:`GraphStore._replace_by_difference`): a re-load of the same file or of an edited
+(:mod:`stepnc_graph.store.replacement`): a re-load of the same file or of an edited
 one costs 0.7-1.5 loads, where deleting the old version and loading the new one cost
 2.1-2.5 (100k instances beside three such programs, measured; the ratios move with the load
 they are measured against); a program of 1M instances
@@ -77,34 +77,23 @@ import shutil
 import sys
 import threading
 import time
-import traceback
 import uuid
 from contextlib import contextmanager
-import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import pyoxigraph as ox
 
 from stepnc_graph.store.handoff import Handoff
-from stepnc_graph.store.kept import KeptText, KeptTexts, read_without_blank_nodes
+from stepnc_graph.store.kept import KeptText, KeptTexts
 from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, refuse_strangers
 from stepnc_graph.store import tuning
-from stepnc_graph.store.batches import ChunkStream, count_in, delete_rounds, extend_in_calls, line_pieces
-from stepnc_graph.store.difference import (
-    BlankMatch,
-    Deleter,
-    Tee,
-    append_file,
-    compared_parts,
-    file_lines,
-    give_back_freed_memory,
-    has_blank,
-    line_set,
-)
+from stepnc_graph.store.batches import ChunkStream, count_in, extend_in_calls, line_pieces
+from stepnc_graph.store.difference import Tee
 from stepnc_graph.store.errors import StoreBusy, StoreError, StoreWriteError
+from stepnc_graph.store.removal import Removal
+from stepnc_graph.store.replacement import Replacement
 from stepnc_graph.store.files import (
     DEFAULT_STORE,
     DELETED_QUADS,
@@ -151,6 +140,10 @@ class GraphStore:
     raising :class:`StoreBusy`; ``on_wait(writer)`` is called once before waiting.
     """
 
+    def __new__(cls, path: Path | str | None = None, **_options: Any) -> GraphStore:
+        """``GraphStore(None)`` is a :class:`MemoryStore`; a directory, the store on disk."""
+        return super().__new__(MemoryStore if cls is GraphStore and path is None else cls)
+
     def __init__(self, path: Path | str | None = None, *, readonly: bool = False, create: bool = True,
                  wait: bool | float = False, on_wait: Callable[[Writer], None] | None = None) -> None:
         self.path = Path(path) if path is not None else None
@@ -164,7 +157,7 @@ class GraphStore:
         self.last_removal: str | None = None
         #: what the last replacement by difference wrote: quads deleted and inserted (and of
         #: these, with a blank node), blank nodes of the new version that kept the old version's
-        #: node (see _replace_by_difference)
+        #: node (see stepnc_graph.store.replacement)
         self.last_difference: dict[str, int] = {}
         #: whether the last unload or replacement compacted the database (see _settle)
         self.compacted = False
@@ -439,8 +432,6 @@ class GraphStore:
         """Quads deleted from the database since it was last compacted (0 in memory): the space
         their tombstones and dead data take comes back at the next compaction, which an unload
         or a replacement runs once they reach :data:`~stepnc_graph.store.tuning.COMPACT_AT` of the store."""
-        if self.path is None:
-            return 0
         try:
             return int(self._file(DELETED_QUADS).read_text())
         except (OSError, ValueError):
@@ -587,17 +578,14 @@ class GraphStore:
         is for the writing commands to check (:class:`~stepnc_graph.core.naming.GraphLayout`).
         """
         refuse_strangers(graph, companions)
-        if self.path is None:
-            self._replace_in_memory(graph, chunks, before_commit, companions)
-            return
         with self._write([graph, *companions, VOCABULARY_GRAPH]) as kept:
-            how, present, removed, held = self._removal([graph, *companions], kept)
+            how, present, removed, held = Removal(self).choose([graph, *companions], kept)
             if how == "delete":
-                deleted = self._replace_by_difference(graph, chunks, before_commit, companions, kept,
-                                                      in_memory=removed <= tuning.STAGE_IN_MEMORY_QUADS)
+                deleted = Replacement(self).replace(graph, chunks, before_commit, companions, kept,
+                                                    in_memory=removed <= tuning.STAGE_IN_MEMORY_QUADS)
                 self._settle(deleted, held)
             else:
-                self._remove(how, present)
+                Removal(self).remove(how, present)
                 self._load_kept(graph, chunks, before_commit, [graph, *companions])
 
     def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
@@ -610,13 +598,9 @@ class GraphStore:
         refuse_strangers(graph, companions)
         if not self._db.contains_named_graph(ox.NamedNode(graph)):
             return False
-        if self.path is None:
-            for name in (graph, *companions):
-                self._db.remove_graph(ox.NamedNode(name))
-            return True
         with self._write([graph, *companions]) as kept:
-            how, present, removed, held = self._removal([graph, *companions], kept)
-            self._remove(how, present)
+            how, present, removed, held = Removal(self).choose([graph, *companions], kept)
+            Removal(self).remove(how, present)
             if how == "delete":
                 self._settle(removed, held - removed, compact)
         return True
@@ -672,413 +656,10 @@ class GraphStore:
             tee.close()
         self._kept_written.update(tee.keep())
 
-    def _quads_about(self, graphs: Sequence[str] | None, kept: dict[str, KeptText]) -> int:
-        """About the quads of ``graphs`` (None: of the database), for choosing how to remove and
-        when to compact: a graph's kept text gives its count (unless the text repeated a line),
-        the others are counted (Oxigraph counts by scanning: 5.9 s for 40.8M quads, 2 s for a
-        program graph of 8M)."""
-        if graphs is not None:
-            return sum(kept[g].lines if g in kept else self.count(g) for g in graphs)
-        counted = count_in(self._db, None) + sum(self.count(g) for g in self.all_graphs() if g not in kept)
-        return counted + sum(k.lines for g, k in kept.items() if self.has_graph(g))
-
-    def _quads_in(self, graphs: Sequence[str]) -> int:
-        return sum(self.count(g) for g in graphs if self.has_graph(g))
-
-    def _removal(self, graphs: Sequence[str],
-                 kept: dict[str, KeptText]) -> tuple[str | None, list[str], int, int]:
-        """How removing ``graphs`` costs less (see the module docstring): "rebuild", "delete",
-        or None when none of them is there; with the ones present, their quads and the
-        database's (about: see :meth:`_quads_about`)."""
-        present = [g for g in graphs if self.has_graph(g)]
-        if not present:
-            return None, [], 0, 0
-        removed, held = self._quads_about(present, kept), self._quads_about(None, kept)
-        how = "rebuild" if (held - removed) * tuning.REBUILD_COST < removed * tuning.DELETE_COST else "delete"
-        return how, present, removed, held
-
-    def _remove(self, how: str | None, present: list[str]) -> None:
-        """Remove the graphs ``present`` the way :meth:`_removal` chose."""
-        if how is None:
-            return
-        self.last_removal = how
-        if how == "rebuild":
-            self._rebuild_without(set(present))
-        else:
-            self._delete_in_batches(present)
-
-    def _replace_by_difference(self, graph: str, chunks: Iterable[Chunk],
-                               before_commit: Callable[[Callable[[str], str]], None] | None,
-                               companions: Sequence[str], kept: dict[str, KeptText],
-                               in_memory: bool = True) -> int:
-        """Replace ``graph`` and its companions by writing only the quads that changed; returns
-        how many quads were deleted.
-
-        Deleting costs Oxigraph more than loading does (see the module docstring), so a
-        replacement that deletes the old version and loads the new one costs two to three loads
-        beside other programs.
-        Here the new version is loaded and completed (``before_commit``) in a store of its own
-        (in memory, or on disk in the scratch directory when ``in_memory`` is false, see
-        :data:`~stepnc_graph.store.tuning.STAGE_IN_MEMORY_QUADS`), then each graph is compared with the one on disk as
-        N-Triples lines (the old version from the text its load kept, ``kept``, see
-        :meth:`_old_from_kept`; else dumped), and only the lines that changed are deleted and
-        inserted. Blank nodes
-        (list cells, typed values), which no two loads name alike, are first matched between the
-        versions by their place under the instance that owns them (:class:`BlankMatch`), so an
-        unchanged list compares equal and keeps its nodes. A re-load of the same file then
-        changes only its load's provenance. If the counts do not come out as the staged ones,
-        the graphs are dropped and loaded whole from the staged version: never a wrong graph.
-        The texts go through files in ``DIR/difference/`` (removed after, or by the next
-        writer's recovery). :attr:`last_difference` counts what was written.
-
-        The loader rewrites the vocabulary graph only when it is stale; the staged store gets
-        the vocabulary's own description from disk, so it is compared only when rewritten.
-        """
-        scratch = self._file("difference")
-        shutil.rmtree(scratch, ignore_errors=True)
-        scratch.mkdir()
-        try:
-            new, old, dumped = self._stage(graph, chunks, before_commit, [graph, *companions], scratch, in_memory,
-                                           kept)
-            give_back_freed_memory()  # the staged store was the peak of an in-memory replacement
-            shutil.rmtree(scratch / "staged", ignore_errors=True)
-            self.last_removal = "difference"
-            match = BlankMatch(old[graph], new[graph])
-            staged_counts = self._apply_difference(old, new, match, scratch)
-            self.last_difference["staged in memory"] = int(in_memory)
-            self.last_difference["new version dumped"] = int(dumped)
-            deleted = self.last_difference["deleted"]
-
-            def adds_up() -> bool:
-                return all(staged_counts[n] == self.count(n) for n in new)
-
-            if not adds_up():
-                self.last_removal = "difference, then delete"
-                present = [n for n in new if self.has_graph(n)]
-                deleted += self._quads_in(present)
-                self._delete_in_batches(present)
-                self._insert(self._relabelled(new, match, scratch / "whole.nq"))
-                if not adds_up():  # rolled back: never a wrong graph
-                    raise StoreError(f"replacing {graph} did not add up (the new version's quads differ from "
-                                     "what was staged); the store is unchanged")
-            return deleted
-        finally:
-            shutil.rmtree(scratch, ignore_errors=True)
-
-    def _stage(self, graph: str, chunks: Iterable[Chunk], before_commit: Callable[[Callable[[str], str]], None] | None,
-               names: list[str], scratch: Path, in_memory: bool,
-               kept: dict[str, KeptText]) -> tuple[dict[str, Path | None], dict[str, Path | None], bool]:
-        """Load the new version of ``graph`` into a store of its own (in memory, or in
-        ``scratch/staged``) and complete it there, while the old version of the graphs ``names``
-        is written out (from the text its load kept, :meth:`_old_from_kept`, or dumped). Returns the N-Triples files of the new and of the old version, graph by
-        graph (None: no such graph; the vocabulary graph is among them when the load rewrote it),
-        and whether the new version was dumped (see below). The staged store is dropped on return.
-
-        The new version's files are the text the load wrote (:class:`Tee`: its chunks, its
-        :class:`Shadow` lines, what ``before_commit`` added as N-Triples), when each holds as
-        many lines as the staged store holds quads in that graph -- so no line was lost,
-        repeated or merged with another. Else they are dumps of the staged store, which cost
-        about as much as the dumps of the old version (Oxigraph decodes every term: 5-8 µs a
-        quad, measured on a 1M-instance program's 13.6M quads).
-        """
-        staged = ox.Store() if in_memory else ox.Store(str(scratch / "staged"))
-        vocabulary = ox.NamedNode(VOCABULARY_GRAPH)
-        staged.extend(self._db.quads_for_pattern(vocabulary, None, None, vocabulary))
-        seeded = len(staged)
-        old: dict[str, Path | None] = {}
-        errors: list[BaseException] = []
-        from_kept: list[str] = []
-
-        def old_version(k: int) -> Path | None:
-            name, path = names[k], scratch / f"old{k}.nt"
-            try:
-                if not self._disk.contains_named_graph(ox.NamedNode(name)):
-                    return None
-                if name in kept and self._old_from_kept(name, kept[name], path):
-                    from_kept.append(name)
-                    return path
-                return self._dump_graph(self._disk, name, path)
-            except BaseException as exc:  # a graph's failure is held by its future, maybe never raised
-                traceback.clear_frames(exc.__traceback__)  # its frames' locals hold the database
-                raise
-
-        def dump_old() -> None:
-            """The old version is written out while the new one is staged (from its kept text, or
-            dumped: Oxigraph's dump releases the GIL, 4 s of a 100k-instance program's 1.3M quads)."""
-            try:
-                with ThreadPoolExecutor(len(names)) as pool:  # a dump is one thread: the graphs side by side
-                    old.update(zip(names, pool.map(old_version, range(len(names))), strict=True))
-            except BaseException as exc:  # noqa: BLE001 -- raised by the replacement below
-                traceback.clear_frames(exc.__traceback__)  # its frames' locals hold the database
-                errors.append(exc)
-
-        # The database on disk is parked in an attribute, never in a local of this frame: a
-        # failure's traceback must not keep it open, or the rollback could not reopen it.
-        self._parked, self._store = self._store, staged
-        self._tee = tee = Tee(names, scratch, self._kept.writing(names))
-        dumping = threading.Thread(target=dump_old, daemon=True)
-        dumping.start()
-        try:
-            try:
-                self._bulk_load(graph, chunks, in_memory=in_memory)
-                if before_commit is not None:
-                    before_commit(lambda name: name)
-            finally:
-                self._tee = None
-                tee.close()
-                dumping.join()
-                self._store, self._parked = self._parked, None
-            if errors:
-                raise errors[0]
-            teed = tee.new_version(staged)
-        except BaseException:
-            tee.discard()
-            raise
-        self.last_difference = {"old version kept": len(from_kept)}
-        if teed is None:
-            tee.discard()
-            for path in tee.paths.values():
-                path.unlink(missing_ok=True)
-        else:
-            self._kept_written.update(tee.keep())
-        to_dump = names if teed is None else []  # and the vocabulary, if the load rewrote it
-        if staged.contains_named_graph(vocabulary) and count_in(staged, VOCABULARY_GRAPH) != seeded:
-            to_dump = [*to_dump, VOCABULARY_GRAPH]
-            old[VOCABULARY_GRAPH] = self._dump_graph(self._db, VOCABULARY_GRAPH, scratch / "old-vocabulary.nt")
-        give_back_freed_memory()  # what completing the graph took, before its dump
-        new = dict(teed or {})
-        with ThreadPoolExecutor(tuning.LOAD_THREADS) as pool:  # the dumps release the GIL: the graphs side by side
-            paths = pool.map(lambda k: self._dump_graph(staged, to_dump[k], scratch / f"staged{k}.nt"),
-                             range(len(to_dump)))
-            new.update(zip(to_dump, paths, strict=True))
-        return new, old, teed is None
-
-    def _old_from_kept(self, name: str, kept: KeptText, path: Path) -> bool:
-        """Write graph ``name`` of the database to ``path`` as N-Triples from the text its load
-        kept (see :mod:`stepnc_graph.store.kept`): the lines without blank node as kept, the others
-        read from the database, predicate by predicate (their blank nodes are named there as the
-        bulk loader named them: 6 s for a 1M-instance program's 1.66M such lines, where the dumps
-        of its two graphs take about 120 s of CPU). False, and nothing to use, when the file is
-        damaged or the line counts differ from the database's."""
-        db, node = self._disk, ox.NamedNode(name)
-        blank = path.with_name(path.stem + "-blank.nt")
-        try:
-            with open(path, "wb", buffering=1 << 20) as out:
-                found = read_without_blank_nodes(self._kept.path(kept), out)
-                if found.lines + found.blank != kept.lines:
-                    return False
-                read = 0
-                for predicate in sorted(found.predicates):
-                    p = predicate.decode("utf-8")
-                    triples = db.query(f"CONSTRUCT {{ ?s {p} ?o }} WHERE {{ GRAPH {node} {{ ?s {p} ?o "
-                                       f"FILTER(isBlank(?s) || isBlank(?o)) }} }}")
-                    assert isinstance(triples, ox.QueryTriples)
-                    # Into a file by Oxigraph itself: as bytes the text of one predicate was
-                    # held twice (150 MB at 1M instances); into a Python writer, every write
-                    # waits for the interpreter (94 s instead of 2 beside a busy thread).
-                    triples.serialize(str(blank), ox.RdfFormat.N_TRIPLES)
-                    del triples  # a query's result holds the database open
-                    read += append_file(blank, out)
-        except (OSError, EOFError, zlib.error, UnicodeDecodeError, SyntaxError):
-            return False
-        finally:
-            blank.unlink(missing_ok=True)
-        return read == found.blank and found.lines + read == count_in(db, name)
-
-    @staticmethod
-    def _relabelled(new: dict[str, Path | None], match: BlankMatch, path: Path) -> Path:
-        """The files ``new`` as one N-Quads file ``path``, blank nodes named by ``match`` (the
-        load's own labels are not unique in the store, see :meth:`BlankMatch.relabel`)."""
-        with open(path, "wb", buffering=1 << 20) as out:
-            for name, lines in new.items():
-                suffix = b" <" + name.encode("utf-8") + b"> .\n"
-                for line in file_lines(lines):
-                    out.write(match.relabel(line)[:-3] + suffix)
-        return path
-
-    @staticmethod
-    def _dump_graph(store: ox.Store, name: str, path: Path) -> Path | None:
-        """Write graph ``name`` of ``store`` to ``path`` as N-Triples; None if it has no such graph."""
-        node = ox.NamedNode(name)
-        if not store.contains_named_graph(node):
-            return None
-        store.dump(str(path), ox.RdfFormat.N_TRIPLES, from_graph=node)
-        return path
-
-    def _apply_difference(self, old: dict[str, Path | None], new: dict[str, Path | None], match: BlankMatch,
-                          scratch: Path) -> dict[str, int]:
-        """Make each graph on disk, dumped to the N-Triples file ``old`` gives for it, hold the
-        file ``new`` gives for it (None: no such graph), blank nodes of the new version named
-        as ``match`` gives (see :meth:`_replace_by_difference`). One graph at a time, one part
-        of it at a time (:func:`compared_parts`): its old lines in a set, the new ones read one
-        at a time; the lines to delete go to a file per part, deleted by a :class:`Deleter`
-        while the next part is compared; the lines to insert to one file, inserted once all
-        is deleted. Returns how many lines each new file has (the quads each graph must end
-        with)."""
-        deleted = inserted = blank = 0
-        lines: dict[str, int] = {}
-        inserts = scratch / "insert.nq"
-        deleter = Deleter(self)
-        try:
-            with open(inserts, "wb") as out:
-                for k, (name, path) in enumerate(new.items()):
-                    node = ox.NamedNode(name)
-                    suffix = b" <" + name.encode("utf-8") + b"> .\n"
-                    count = 0
-                    parts = compared_parts(old.get(name), path, match.relabel, scratch / f"part{k}")
-                    for n, (old_part, new_lines) in enumerate(parts):
-                        unmatched = line_set(old_part)  # old lines no new line has matched yet
-                        for line in new_lines:
-                            count += 1
-                            if line in unmatched:
-                                unmatched.remove(line)  # a graph's lines are distinct, so are relabelled ones
-                            else:
-                                out.write(line[:-3] + suffix)  # each line ends " .\n"
-                                inserted += 1
-                                blank += has_blank(line)
-                        deleted += len(unmatched)
-                        gone = scratch / f"gone{k}-{n}.nt"
-                        with open(gone, "wb") as gone_out:
-                            gone_out.writelines(unmatched)
-                        del unmatched
-                        deleter.delete(node, gone)
-                    lines[name] = count
-                    deleter.settle_graph(node, present=path is not None)
-            deleter.finish()
-        finally:
-            deleter.close()
-        self._insert(inserts)
-        self._deletes_logged = True
-        self.last_difference.update({"deleted": deleted, "inserted": inserted, "inserted with a blank node": blank,
-                                     "blank nodes kept": match.kept})
-        return lines
-
-    def _delete_lines(self, node: ox.NamedNode, path: Path, unflushed: int = 0) -> int:
-        """Delete the N-Triples lines of the file ``path`` (as Oxigraph dumped them) from graph
-        ``node``, :data:`~stepnc_graph.store.tuning.DELETE_LINES` at a time: ground ones by ``DELETE DATA``, the ones with a
-        blank node (which SPARQL cannot name) parsed with their labels kept and removed one by
-        one. The memory tables are flushed after every :data:`~stepnc_graph.store.tuning.FLUSH_DELETES` lines, as batched
-        deletes do between rounds (their tombstones stay in memory until then), counting the
-        ``unflushed`` lines deleted before; returns the count left. The caller sees to it that
-        no other thread deletes meanwhile."""
-        with open(path, "rb") as fh:
-            while batch := list(itertools.islice(fh, tuning.DELETE_LINES)):
-                if unflushed >= tuning.FLUSH_DELETES:
-                    self._flush()
-                    unflushed = 0
-                unflushed += len(batch)
-                ground: list[bytes] = []
-                blank: list[bytes] = []
-                for line in batch:
-                    (blank if has_blank(line) else ground).append(line)
-                if ground:
-                    self._db.update(f"DELETE DATA {{ GRAPH {node} {{ {b''.join(ground).decode('utf-8')} }} }}")
-                for triple in ox.parse(b"".join(blank), format=ox.RdfFormat.N_TRIPLES):
-                    self._db.remove(ox.Quad(triple.subject, triple.predicate, triple.object, node))
-        return unflushed
-
-    def _insert(self, path: Path, graph: str | None = None) -> None:
-        """Add the N-Quads file ``path`` (N-Triples into ``graph`` when one is given), its blank
-        node labels kept (they are the staged store's random 128-bit ids, so a blank node that two
-        graphs share -- the derived layer points at the program's list cells -- stays one node
-        across calls and files), in bulk calls of :data:`~stepnc_graph.store.tuning.INSERT_BATCH` quads."""
-        if graph is None:
-            quads = iter(ox.parse(path=str(path), format=ox.RdfFormat.N_QUADS))
-        else:
-            node = ox.NamedNode(graph)
-            quads = (ox.Quad(t.subject, t.predicate, t.object, node)
-                     for t in ox.parse(path=str(path), format=ox.RdfFormat.N_TRIPLES))
-        for _ in extend_in_calls(self._db, quads, tuning.INSERT_BATCH):
-            pass
-
     @property
     def _disk(self) -> ox.Store:
         """The database on disk, also while a replacement is staged in memory."""
         return self._parked if self._parked is not None else self._db
-
-    def _delete_in_batches(self, graphs: Sequence[str]) -> None:
-        """Delete the quads of ``graphs`` (a program graph and its companions) in transactions of
-        bounded size (flat memory), predicate by predicate, :data:`~stepnc_graph.store.tuning.DELETE_BATCH` quads a
-        transaction, on :data:`~stepnc_graph.store.tuning.LOAD_THREADS` threads, the largest predicates first (balanced
-        threads).
-
-        Why by predicate: a batch's scan of one predicate's quads in a graph is one range of
-        an index, and it meets only the tombstones of the quads of that predicate deleted
-        before it. "The first n quads of the graph" again and again walks over the tombstones
-        of every quad deleted so far (17.6 µs a quad, 1M quads beside 2M), and deleting by
-        lists of IRI subjects seeks each subject's quads (a real 100k-instance program beside
-        three: 17.7 s of wall, 32 s of CPU time for its 1.36M quads; by predicate 8.5-9.8 s and
-        14-15 s; measured alternating in one run). It also takes blank nodes' quads, which
-        SPARQL cannot name, with the rest.
-        """
-        nodes = [ox.NamedNode(g) for g in graphs]
-        work: list[tuple[ox.NamedNode, str, int]] = []
-        for node in nodes:
-            counts = self._db.query(f"SELECT ?p (COUNT(*) AS ?n) WHERE {{ GRAPH {node} {{ ?s ?p ?o }} }} GROUP BY ?p")
-            work += [(node, str(row[0]), int(row[1].value)) for row in counts]  # type: ignore[union-attr]
-            del counts  # a query's rows hold the database open
-        with ThreadPoolExecutor(tuning.LOAD_THREADS) as pool:
-            for k, part in enumerate(delete_rounds(work, tuning.FLUSH_DELETES, tuning.LOAD_THREADS)):
-                if k:
-                    self._flush()
-                list(pool.map(self._delete_predicate, part))
-        self._deletes_logged = True
-        for node in nodes:
-            self._db.remove_graph(node)  # the name, and any quad added since the count
-
-    def _flush(self) -> None:
-        """Write the database's memory tables to disk, between two rounds of batched deletes.
-
-        Never while a delete runs on another thread: RocksDB's manual flush then sometimes
-        waits forever for a flush that is never scheduled (seen here in 4 of 20 runs of the
-        batched-delete test, flushing from the deleting threads: background threads idle, the
-        flushing one in ``DBImpl::WaitForFlushMemTables``)."""
-        self._db.flush()
-
-    def _delete_predicate(self, item: tuple[ox.NamedNode, str, int]) -> None:
-        """Delete ``n`` quads of one predicate in one graph, :data:`~stepnc_graph.store.tuning.DELETE_BATCH` a transaction."""
-        node, predicate, n = item
-        for done in range(0, n, tuning.DELETE_BATCH):
-            self._db.update(f"DELETE {{ GRAPH {node} {{ ?s {predicate} ?o }} }} WHERE {{ {{ SELECT ?s ?o WHERE "
-                            f"{{ GRAPH {node} {{ ?s {predicate} ?o }} }} LIMIT {min(tuning.DELETE_BATCH, n - done)} }} }}")
-
-    def _rebuild_without(self, dropped: set[str], progress: Callable[[int, int], None] | None = None) -> None:
-        """Replace ``work/`` by a fresh database holding every graph but ``dropped``.
-
-        ``progress(done, total)`` is told the quads copied after each bulk call. On a failure
-        (or an exception from ``progress``) no reference to either database stays in this
-        frame, so the rollback can reopen ``work/``.
-        """
-        rebuild = self._file("rebuild")
-        shutil.rmtree(rebuild, ignore_errors=True)
-        fresh = ox.Store(str(rebuild))
-        keep = [g for g in self._db.named_graphs() if not (isinstance(g, ox.NamedNode) and g.value in dropped)]
-        total = len(self._db) - self._quads_in(sorted(dropped)) if progress else 0
-        done = 0
-        try:
-            for g in [ox.DefaultGraph(), *keep]:
-                for copied in self._copy_graph(fresh, g):
-                    done += copied
-                    if progress is not None:
-                        progress(done, total)
-            fresh.flush()
-        except BaseException:
-            del fresh
-            raise
-        del fresh
-        self._close_db()
-        shutil.rmtree(self._file("work"))
-        rebuild.rename(self._file("work"))
-        self._store = ox.Store(str(self._file("work")))
-        self._deleted_after = 0  # a fresh database: nothing deleted in it
-
-    def _copy_graph(self, fresh: ox.Store, graph: ox.NamedNode | ox.BlankNode | ox.DefaultGraph) -> Iterator[int]:
-        """Copy ``graph`` into ``fresh``, yielding how many quads each bulk call copied. A
-        generator, so that the iterator over the database lives in its frame only, not in the
-        caller's."""
-        yield from extend_in_calls(fresh, iter(self._db.quads_for_pattern(None, None, None, graph)))
-        if isinstance(graph, (ox.NamedNode, ox.BlankNode)):
-            fresh.add_graph(graph)  # an empty named graph stays a graph
 
     def _bulk_load(self, graph: str, chunks: Iterable[Chunk],
                    target: Callable[[str], str] = lambda name: name, in_memory: bool | None = None) -> None:
@@ -1168,30 +749,6 @@ class GraphStore:
         if errors:
             raise errors[0]
 
-    def _replace_in_memory(self, graph: str, chunks: Iterable[Chunk],
-                           before_commit: Callable[[Callable[[str], str]], None] | None,
-                           companions: Sequence[str]) -> None:
-        """A new graph loads in place (rollback: drop it and its companions); a replacement is
-        written under staging names, then moved into place in one SPARQL Update transaction.
-
-        Moving copies quad by quad, so a new graph (the usual case of a throw-away store)
-        skips it.
-        """
-        names = (graph, *companions)
-        replacing = any(self._db.contains_named_graph(ox.NamedNode(n)) for n in names)
-        staging = {n: STAGING + uuid.uuid4().hex if replacing else n for n in names}
-        try:
-            self._bulk_load(staging[graph], chunks, lambda name: staging[name])
-            if before_commit is not None:
-                before_commit(lambda name: staging[name])
-        except BaseException:
-            for name in staging.values():
-                self._db.remove_graph(ox.NamedNode(name))
-            raise
-        if replacing:
-            self._db.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; MOVE SILENT GRAPH <{tmp}> TO "
-                                       f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
-
     def update(self, sparql: str) -> None:
         """One SPARQL Update (one transaction); for writes inside a load's ``before_commit``
         (into the graphs of that load: outside a load, it may have changed any graph)."""
@@ -1246,29 +803,28 @@ class GraphStore:
         ``progress(done, total)`` counts the quads copied. An in-memory store has nothing to give
         back.
         """
-        if self.path is None:
-            return
         with self._write(None):
-            self._rebuild_without(set(), progress)
+            Removal(self).rebuild_without(set(), progress)
             self._db.optimize()  # the bulk loader's tables, merged now rather than beside the published ones
 
     def disk_bytes(self) -> int:
         """Bytes the store directory takes on disk (a file hard-linked into several generations
         counted once); 0 for an in-memory store."""
-        return 0 if self.path is None else directory_bytes(self.path)
+        assert self.path is not None
+        return directory_bytes(self.path)
 
     # -- reading ------------------------------------------------------------------------
 
     @property
     def capabilities(self) -> Capabilities:
-        """On disk: persistent and compactable; both embed Oxigraph (blank nodes as given, cheap reads)."""
-        on_disk = self.path is not None
-        return Capabilities(persistent=on_disk, blank_node_writes=True, local_reads=True, compactable=on_disk)
+        """Persistent and compactable; embedded Oxigraph: blank nodes as given, cheap local reads."""
+        return Capabilities(persistent=True, blank_node_writes=True, local_reads=True, compactable=True)
 
     @property
     def location(self) -> str:
-        """The store's absolute directory, or "memory"."""
-        return str(self.path.resolve()) if self.path is not None else "memory"
+        """The store's absolute directory."""
+        assert self.path is not None
+        return str(self.path.resolve())
 
     def maintenance(self) -> Maintenance:
         """Deleted quads waiting for a compaction and bytes on disk (0 and 0 in memory)."""
@@ -1331,3 +887,66 @@ class GraphStore:
         return rdflib.Dataset(store=OxigraphStore(store=self.oxigraph))
 
 
+class MemoryStore(GraphStore):
+    """A throw-away store in memory (``GraphStore(None)``, ``open_store(memory=True)``): no files,
+    locks, generations or compaction. A new graph is loaded in place (dropped on failure); a
+    replacement goes into staging graphs moved into place in one SPARQL Update transaction."""
+
+    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
+                      before_commit: Callable[[Callable[[str], str]], None] | None = None,
+                      companions: Sequence[str] = ()) -> None:
+        """As :meth:`GraphStore.replace_graph`, in memory."""
+        refuse_strangers(graph, companions)
+        self._replace_in_memory(graph, chunks, before_commit, companions)
+
+    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
+        """Remove ``graph`` and its ``companions``; False if ``graph`` was not there."""
+        refuse_strangers(graph, companions)
+        if not self._db.contains_named_graph(ox.NamedNode(graph)):
+            return False
+        for name in (graph, *companions):
+            self._db.remove_graph(ox.NamedNode(name))
+        return True
+
+    def compact(self, progress: Callable[[int, int], None] | None = None) -> None:
+        """Nothing to give back in memory."""
+
+    @property
+    def deleted_quads(self) -> int:
+        return 0
+
+    def disk_bytes(self) -> int:
+        return 0
+
+    @property
+    def capabilities(self) -> Capabilities:
+        """Not persistent (a load leaves the vocabulary graph out of it); embedded Oxigraph."""
+        return Capabilities(persistent=False, blank_node_writes=True, local_reads=True, compactable=False)
+
+    @property
+    def location(self) -> str:
+        return "memory"
+
+    def _replace_in_memory(self, graph: str, chunks: Iterable[Chunk],
+                           before_commit: Callable[[Callable[[str], str]], None] | None,
+                           companions: Sequence[str]) -> None:
+        """A new graph loads in place (rollback: drop it and its companions); a replacement is
+        written under staging names, then moved into place in one SPARQL Update transaction.
+
+        Moving copies quad by quad, so a new graph (the usual case of a throw-away store)
+        skips it.
+        """
+        names = (graph, *companions)
+        replacing = any(self._db.contains_named_graph(ox.NamedNode(n)) for n in names)
+        staging = {n: STAGING + uuid.uuid4().hex if replacing else n for n in names}
+        try:
+            self._bulk_load(staging[graph], chunks, lambda name: staging[name])
+            if before_commit is not None:
+                before_commit(lambda name: staging[name])
+        except BaseException:
+            for name in staging.values():
+                self._db.remove_graph(ox.NamedNode(name))
+            raise
+        if replacing:
+            self._db.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; MOVE SILENT GRAPH <{tmp}> TO "
+                                       f"{ox.NamedNode(name)}" for name, tmp in staging.items()))

@@ -1,4 +1,4 @@
-"""A replacement by difference (see :meth:`stepnc_graph.store.GraphStore._replace_by_difference`):
+"""A replacement by difference (see :mod:`stepnc_graph.store.replacement`):
 the load's text kept as it is written (:class:`Tee`), blank nodes matched between the versions
 (:class:`BlankMatch`), the old lines deleted on a thread of their own (:class:`Deleter`), and
 the N-Triples files compared part by part."""
@@ -21,7 +21,7 @@ from stepnc_graph.store.batches import count_in
 from stepnc_graph.store.kept import BLANK_OBJECT, KeptText, KeptWriting
 
 if TYPE_CHECKING:
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.replacement import Replacement
 
 
 class Deleter:
@@ -32,8 +32,8 @@ class Deleter:
     beside a delete (see :data:`~stepnc_graph.store.tuning.FLUSH_DELETES`). The first error stops it and is raised by
     :meth:`finish`."""
 
-    def __init__(self, store: GraphStore) -> None:
-        self._store = store
+    def __init__(self, replacement: Replacement) -> None:
+        self._replacement = replacement
         self._work: queue.Queue[Callable[[], None] | None] = queue.Queue()
         self._error: BaseException | None = None
         self._unflushed = 0
@@ -52,7 +52,7 @@ class Deleter:
     def delete(self, node: ox.NamedNode, path: Path) -> None:
         """Delete the lines of the file ``path`` from graph ``node``, then remove the file."""
         def task() -> None:
-            self._unflushed = self._store._delete_lines(node, path, self._unflushed)
+            self._unflushed = self._replacement._delete_lines(node, path, self._unflushed)
             path.unlink()
         self._work.put(task)
 
@@ -60,7 +60,7 @@ class Deleter:
         """Once its lines are deleted: drop graph ``node`` if the new version has none, or
         make sure it is there (an empty graph stays a graph)."""
         def task() -> None:
-            db = self._store._db
+            db = self._replacement.store._db
             if not present:
                 db.remove_graph(node)
             elif not db.contains_named_graph(node):
@@ -81,7 +81,7 @@ class Deleter:
 
 class Tee:
     """The text a load writes into the graphs ``names``, as it goes by: for a replacement to
-    compare (files in ``scratch``, see :meth:`GraphStore._stage`) and to keep for the next one
+    compare (files in ``scratch``, see :meth:`~stepnc_graph.store.replacement.Replacement._stage`) and to keep for the next one
     (``kept``, see :mod:`stepnc_graph.store.kept`). Encoded once for both."""
 
     def __init__(self, names: Sequence[str], scratch: Path | None = None, kept: KeptWriting | None = None) -> None:
