@@ -9,7 +9,7 @@ an earlier process prepared: wall and CPU seconds, the process's peak RSS, how t
 removed the old graph ("rebuild": the store held little else; "delete": batched deletes
 beside other programs), and the store's size on disk afterwards. An unload beside other
 programs compacts the database only once the quads deleted since its last compaction reach
-stepnc_graph.store.COMPACT_AT of the store: the "unload" column is what the store chose
+stepnc_graph.store.tuning.COMPACT_AT of the store: the "unload" column is what the store chose
 ("+c": it compacted), then the program is loaded again and unloaded with ``compact=True``
 (``unload --compact``: the deletes and a compaction of the whole store), and ``compact``
 runs on what that left (its time, and the disk space it gives back). The edited file has a

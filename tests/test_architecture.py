@@ -22,17 +22,42 @@ def figures():  # type: ignore[no-untyped-def]
 
 
 def test_no_import_cycle_even_through_function_level_imports(figures) -> None:  # type: ignore[no-untyped-def]
-    assert len(figures.cycles) <= 3, figures.cycles
+    assert len(figures.cycles) == 0, figures.cycles
 
 
 def test_imports_only_point_down_the_layers(figures) -> None:  # type: ignore[no-untyped-def]
-    assert len(figures.upward) <= 10, figures.upward
+    assert len(figures.upward) == 0, figures.upward
 
 
 def test_callers_ask_the_store_contract_never_the_back_end(figures) -> None:  # type: ignore[no-untyped-def]
-    assert len(figures.type_tests) <= 9, figures.type_tests
+    assert len(figures.type_tests) == 0, figures.type_tests
 
 
 def test_modules_and_classes_stay_readable(figures) -> None:  # type: ignore[no-untyped-def]
-    assert len(figures.large_modules) <= 15, figures.large_modules
-    assert len(figures.large_classes) <= 4, figures.large_classes
+    assert len(figures.large_modules) <= 14, figures.large_modules
+    assert len(figures.large_classes) <= 3, figures.large_classes
+
+
+def _documented_modules() -> set[str]:
+    """The files docs/architecture.md's folder tree names, as paths under src/stepnc_graph."""
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    tree = text.split("```\nsrc/stepnc_graph/\n", 1)[1].split("```", 1)[0]
+    found, package = set(), ""
+    for line in tree.splitlines():
+        indent, entry = len(line) - len(line.lstrip()), line.strip().split("  ")[0]
+        if indent == 2 and entry.endswith("/"):
+            package = entry
+        elif indent == 2:
+            found.add(entry)
+        elif indent == 4 and entry.endswith((".py", ".py,")):
+            found.update(package + name.strip() for name in entry.split(",") if name.strip())
+    return found
+
+
+def test_the_documented_tree_is_the_package() -> None:
+    package = ROOT / "src" / "stepnc_graph"
+    actual = {str(p.relative_to(package)) for p in package.rglob("*.py")}
+    optional = {name for name in actual if name.endswith(("/__init__.py", "/__main__.py"))}
+    documented = _documented_modules()
+    assert documented - actual == set()  # nothing named that is not there
+    assert actual - optional - documented == set()  # every module is named, with its role

@@ -27,6 +27,7 @@ from stepnc_graph.graphs.vocabulary_graph import (
     vocabulary_for_queries,
     vocabulary_status,
 )
+from stepnc_graph.core.naming import listed_graphs
 
 from conftest import FIXTURES, ROOT
 
@@ -282,9 +283,9 @@ def test_reload_replaces_and_unload_removes_the_layer(tmp_path: Path, memory: bo
     [r2] = sg.load(store, [path])
     assert store.count(layer) == r2.derived_triples
     assert rows(store, r.graph, "SELECT (MAX(?o) AS ?n) WHERE { ?s sga:order ?o }") == [("7",)]
-    assert store.graphs() == [r.graph]
+    assert listed_graphs(store) == [r.graph]
     assert sg.unload(store, r.graph) is True
-    assert store.count(layer) == 0 and store.graphs() == []
+    assert store.count(layer) == 0 and listed_graphs(store) == []
     # on disk the vocabulary stays; a throw-away store gets it only when queried
     assert (stored_digest(store) is None) == memory
 
@@ -390,7 +391,7 @@ def test_a_layer_written_in_pieces_is_the_layer_written_whole(tmp_path: Path, mo
     from rdflib.compare import isomorphic
 
     from stepnc_graph.loading import derive as derive_module
-    from stepnc_graph import store as store_module
+    from stepnc_graph.store import tuning
 
     RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
 
@@ -407,8 +408,8 @@ def test_a_layer_written_in_pieces_is_the_layer_written_whole(tmp_path: Path, mo
 
     whole, whole_count = loaded("whole")
     monkeypatch.setattr(derive_module, "TEXT_PIECE", 300)
-    monkeypatch.setattr(store_module, "TRANSACTION_QUADS", 3)
-    monkeypatch.setattr(store_module, "INSERT_BATCH", 5)
+    monkeypatch.setattr(tuning, "TRANSACTION_QUADS", 3)
+    monkeypatch.setattr(tuning, "INSERT_BATCH", 5)
     pieces, pieces_count = loaded("pieces")
     layer_of = rdflib.URIRef(ANALYSIS_NS + "layerOf-derived")
     step = rdflib.URIRef(ANALYSIS_NS + "ExecutionStep")

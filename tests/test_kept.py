@@ -16,7 +16,10 @@ import stepnc_graph as sg
 from stepnc_graph.store import kept as kept_module
 from stepnc_graph.store.kept import KeptTexts, read_without_blank_nodes
 from stepnc_graph.core.naming import derived_graph_iri
-from stepnc_graph.store import GraphStore, _has_blank
+from stepnc_graph.store import GraphStore
+from stepnc_graph.store.difference import has_blank
+from stepnc_graph.store.removal import Removal
+from stepnc_graph.store.replacement import Replacement
 
 from test_store import EXAMPLE, G, assert_as_a_fresh_load, copies
 
@@ -84,7 +87,7 @@ def test_the_old_version_read_from_the_kept_text_is_the_dump_of_the_store(tmp_pa
         kept = s._kept.valid(s.generation)
         for graph in (G, D):
             path = tmp_path / "old.nt"
-            assert s._old_from_kept(graph, kept[graph], path)
+            assert Replacement(s)._old_from_kept(graph, kept[graph], path)
             dumped = s.dump(ox.RdfFormat.N_TRIPLES, graph)
             assert as_stored(path.read_bytes()) == sorted(dumped.splitlines())
 
@@ -169,8 +172,9 @@ def test_the_kept_line_counts_stand_for_counting_the_store(tmp_path: Path) -> No
         s.add_ntriples("urn:unkept", "<urn:s> <urn:p> <urn:o> .\n")  # a graph no load wrote
         kept = s._kept.valid(s.generation)
         assert set(kept) == {G, D, *others, *map(derived_graph_iri, others)}
-        assert s._quads_about(None, kept) == s.count() == s._quads_about(None, {})
-        assert s._quads_about([G, D], kept) == s.count(G) + s.count(D)
+        removal = Removal(s)
+        assert removal._quads_about(None, kept) == s.count() == removal._quads_about(None, {})
+        assert removal._quads_about([G, D], kept) == s.count(G) + s.count(D)
 
 
 def test_a_killed_writer_s_texts_are_collected_by_the_next_writer(tmp_path: Path) -> None:
@@ -253,7 +257,7 @@ def test_reading_a_kept_text_separates_the_lines_with_a_blank_node(tmp_path_fact
     with pytest.MonkeyPatch.context() as m:
         m.setattr(kept_module, "BLOCK", block)
         found = read_without_blank_nodes(path, out)
-    blank = [line for line in lines if _has_blank(line)]
-    assert out.getvalue() == b"".join(line for line in lines if not _has_blank(line))
+    blank = [line for line in lines if has_blank(line)]
+    assert out.getvalue() == b"".join(line for line in lines if not has_blank(line))
     assert (found.lines, found.blank) == (len(lines) - len(blank), len(blank))
     assert found.predicates == {line.split(b" ")[1] for line in blank}

@@ -17,6 +17,7 @@ from stepnc_graph.loading.link import LinkError, program_link_graphs
 from stepnc_graph.core.naming import P21_NS, link_graph_iri
 from stepnc_graph.loading.sources import SourceError
 from stepnc_graph.store import GraphStore
+from stepnc_graph.core.naming import listed_graphs
 
 from conftest import ROOT
 from test_load import canonical
@@ -100,7 +101,7 @@ def test_unload_removes_the_program_with_its_link_graphs() -> None:
     sg.link(store, MAPPING, graph)
     assert store.has_graph(graph + "/links/shaft_plm_links.csv")
     assert sg.unload(store, graph)
-    assert store.graphs() == []
+    assert listed_graphs(store) == []
 
 
 def test_a_link_graph_records_its_provenance_and_the_documented_query_lists_it(

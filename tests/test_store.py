@@ -21,9 +21,13 @@ import pytest
 
 import stepnc_graph as sg
 from stepnc_graph import store as store_module
+from stepnc_graph.store import batches, difference, replacement, tuning
+from stepnc_graph.store.removal import Removal
+from stepnc_graph.store.replacement import Replacement
 from stepnc_graph.store.handoff import Handoff
 from stepnc_graph.core.naming import VOCABULARY_GRAPH
 from stepnc_graph.store import GraphStore, StoreBusy, StoreError
+from stepnc_graph.core.naming import listed_graphs
 
 from conftest import ROOT
 
@@ -69,36 +73,36 @@ def test_unloading_the_only_program_rebuilds_and_gives_the_space_back(tmp_path: 
         assert sg.unload(s, r.graph) and s.last_removal == "rebuild"
     assert disk_bytes(tmp_path / "s") < loaded / 5
     with sg.open_store(tmp_path / "s", readonly=True) as r2:
-        assert r2.graphs() == [] and r2.count() == r2.count(VOCABULARY_GRAPH) > 0  # the vocabulary stays
+        assert listed_graphs(r2) == [] and r2.count() == r2.count(VOCABULARY_GRAPH) > 0  # the vocabulary stays
 
 
 def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Deletes predicate by predicate, in several batches each: the graph and its derived layer
     go (a blank node no IRI leads to too), nothing of the other programs, and the batches did
     the work (not the final removal of the graph's name)."""
-    monkeypatch.setattr(store_module, "DELETE_BATCH", 5)  # several batches on a small graph
-    monkeypatch.setattr(store_module, "FLUSH_DELETES", 12)  # memory tables flushed between batches
+    monkeypatch.setattr(tuning, "DELETE_BATCH", 5)  # several batches on a small graph
+    monkeypatch.setattr(tuning, "FLUSH_DELETES", 12)  # memory tables flushed between batches
     deleted: list[int] = []
     running: list[int] = []  # deletes under way, as the threads saw them
     flushes: list[int] = []  # deletes under way at each flush
-    real, real_flush = GraphStore._delete_predicate, GraphStore._flush
+    real, real_flush = Removal._delete_predicate, Removal.flush
 
-    def counted(self: GraphStore, item: tuple[ox.NamedNode, str, int]) -> None:
+    def counted(self: Removal, item: tuple[ox.NamedNode, str, int]) -> None:
         node, predicate, n = item
         running.append(1)
-        before = sum(1 for _ in self.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]), None, node))
+        before = sum(1 for _ in self.store.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]), None, node))
         real(self, item)
-        deleted.append(before - sum(1 for _ in self.oxigraph.quads_for_pattern(None, ox.NamedNode(predicate[1:-1]),
-                                                                                None, node)))
+        deleted.append(before - sum(1 for _ in self.store.oxigraph.quads_for_pattern(
+            None, ox.NamedNode(predicate[1:-1]), None, node)))
         assert deleted[-1] == n
         running.append(-1)
 
-    def flush(self: GraphStore) -> None:
+    def flush(self: Removal) -> None:
         flushes.append(sum(running))
         real_flush(self)
 
-    monkeypatch.setattr(GraphStore, "_delete_predicate", counted)
-    monkeypatch.setattr(GraphStore, "_flush", flush)
+    monkeypatch.setattr(Removal, "_delete_predicate", counted)
+    monkeypatch.setattr(Removal, "flush", flush)
     with sg.open_store(tmp_path / "s") as s:
         graphs = copies(s, 4)
         counts = {g: s.count(g) for g in graphs}
@@ -108,7 +112,7 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
         for g in graphs[:2]:
             held = s.count(g) + s.count(g + "/derived")
             assert max(sum(q.predicate == p for q in s.quads(g)) for p in {q.predicate for q in s.quads(g)}) \
-                > 2 * store_module.DELETE_BATCH
+                > 2 * tuning.DELETE_BATCH
             deleted.clear()
             assert sg.unload(s, g) and s.last_removal == "delete" and sum(deleted) == held
             assert len(flushes) >= held // 12 - 1 and not any(flushes)  # never beside a running delete
@@ -116,7 +120,7 @@ def test_unloading_beside_other_programs_deletes_in_batches(tmp_path: Path, monk
             assert not s.has_graph(g) and s.count(g) == s.count(g + "/derived") == 0
             assert {h: s.count(h) for h in graphs[2:]} == {h: counts[h] for h in graphs[2:]}
     with sg.open_store(tmp_path / "s", readonly=True) as r:
-        assert r.graphs() == sorted(graphs[2:])
+        assert listed_graphs(r) == sorted(graphs[2:])
 
 
 def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -124,7 +128,7 @@ def test_unloading_beside_other_programs_gives_the_space_back(tmp_path: Path, mo
     log until the database is opened again: an unload that compacts (here asked to) also
     reopens, so the whole store directory shrinks, not only the published generation readers
     open (the deletes go in several rounds with flushes between them, as a large program's do)."""
-    monkeypatch.setattr(store_module, "FLUSH_DELETES", 20_000)
+    monkeypatch.setattr(tuning, "FLUSH_DELETES", 20_000)
     big = generated(tmp_path, 5_000)
     with sg.open_store(tmp_path / "s") as s:
         graphs = [f"urn:copy:{k}" for k in range(3)]
@@ -155,7 +159,7 @@ def test_unloads_compact_once_the_deleted_quads_reach_compact_at(tmp_path: Path,
         graphs = copies(s, 4)
         n, held = program_quads(s, graphs[0]), s.count()
         first, second = n / (held - n), 2 * n / (held - 2 * n)  # deleted / left after each unload
-        monkeypatch.setattr(store_module, "COMPACT_AT", (first + second) / 2)
+        monkeypatch.setattr(tuning, "COMPACT_AT", (first + second) / 2)
         assert sg.unload(s, graphs[0]) and s.last_removal == "delete" and not s.compacted
         assert s.deleted_quads == n
     with sg.open_store(tmp_path / "s", readonly=True) as r:
@@ -172,30 +176,30 @@ def test_unloads_compact_once_the_deleted_quads_reach_compact_at(tmp_path: Path,
 
 
 def test_a_failed_unload_keeps_the_count_of_deleted_quads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(store_module, "COMPACT_AT", 10.0)  # never reached here
+    monkeypatch.setattr(tuning, "COMPACT_AT", 10.0)  # never reached here
     with sg.open_store(tmp_path / "s") as s:
         graphs = copies(s, 4)
         n = program_quads(s, graphs[0])
         assert sg.unload(s, graphs[0]) and s.deleted_quads == n
 
-        def failing(self: GraphStore, item: tuple[ox.NamedNode, str, int]) -> None:
+        def failing(self: Removal, item: tuple[ox.NamedNode, str, int]) -> None:
             raise RuntimeError("disk full (injected)")
 
-        monkeypatch.setattr(GraphStore, "_delete_predicate", failing)
+        monkeypatch.setattr(Removal, "_delete_predicate", failing)
         with pytest.raises(RuntimeError, match="injected"):
             sg.unload(s, graphs[1])
         assert s.deleted_quads == n and s.has_graph(graphs[1])
 
 
 def test_a_replacement_counts_the_quads_it_deleted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(store_module, "COMPACT_AT", 10.0)
+    monkeypatch.setattr(tuning, "COMPACT_AT", 10.0)
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
         sg.load(s, [EXAMPLE], base_iri=G)
         sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
         assert s.last_removal == "difference" and not s.compacted
         assert s.deleted_quads == s.last_difference["deleted"] > 50  # every shifted p21:line at least
-        monkeypatch.setattr(store_module, "COMPACT_AT", 0.0)  # now any deletion reaches it
+        monkeypatch.setattr(tuning, "COMPACT_AT", 0.0)  # now any deletion reaches it
         sg.load(s, [EXAMPLE], base_iri=G, replace=True)
         assert s.compacted and s.deleted_quads == 0
 
@@ -205,7 +209,7 @@ def test_unload_compact_and_info_on_the_command_line(tmp_path: Path, monkeypatch
 
     from stepnc_graph.cli import main
 
-    monkeypatch.setattr(store_module, "COMPACT_AT", 10.0)
+    monkeypatch.setattr(tuning, "COMPACT_AT", 10.0)
     store = str(tmp_path / "s")
     with sg.open_store(store) as s:
         graphs = copies(s, 4)
@@ -244,11 +248,11 @@ def test_compact_gives_back_what_an_unload_beside_others_leaves(tmp_path: Path) 
             sg.compact(s)
             assert quads(reader) == before  # the generation it opened is still there
     with sg.open_store(tmp_path / "s", readonly=True) as r:
-        assert quads(r) == before and r.graphs() == sorted(graphs[1:])
+        assert quads(r) == before and listed_graphs(r) == sorted(graphs[1:])
 
 
 def test_a_failed_compact_leaves_the_store_as_it_was(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(store_module, "REBUILD_BATCH", 100)  # several calls a graph
+    monkeypatch.setattr(tuning, "REBUILD_BATCH", 100)  # several calls a graph
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 2)
         before = quads(s)
@@ -346,7 +350,7 @@ def test_one_writer_at_a_time_in_one_process_too(tmp_path: Path) -> None:
             sg.open_store(tmp_path / "s")
         with pytest.raises(StoreBusy):
             sg.open_store(tmp_path / "s", wait=0.3)
-        assert sg.open_store(tmp_path / "s", readonly=True).graphs() == []
+        assert listed_graphs(sg.open_store(tmp_path / "s", readonly=True)) == []
 
 
 def test_a_read_only_store_refuses_writes(tmp_path: Path) -> None:
@@ -368,7 +372,7 @@ def test_a_format_1_store_is_migrated(tmp_path: Path) -> None:
     db.flush()
     del db
     with sg.open_store(old, readonly=True) as r:  # a reader asks the writer's lock to migrate
-        assert r.graphs() == ["urn:g"]
+        assert listed_graphs(r) == ["urn:g"]
     assert not (old / "oxigraph").exists() and json.loads((old / "stepnc-graph-store.json").read_text())[
         "format"] == store_module.FORMAT_VERSION
 
@@ -388,7 +392,7 @@ def test_the_compact_command(tmp_path: Path) -> None:
     doc = json.loads(res.output)
     assert doc["store"] == str(Path(store).resolve()) and doc["before"] > 0 and doc["after"] > 0
     with sg.open_store(store, readonly=True) as r:
-        assert doc["quads"] == r.count() and r.graphs() == graphs[1:]
+        assert doc["quads"] == r.count() and listed_graphs(r) == graphs[1:]
     text = runner.invoke(main, ["compact", "--store", store])
     assert text.exit_code == 0 and text.output.startswith("compacted ") and f"({doc['quads']:,} quads)" in text.output
 
@@ -460,15 +464,15 @@ def staging(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> 
     made so by small bounds). Gives the part counts of the splits done."""
     splits: list[int] = []
     if request.param != "in memory":
-        monkeypatch.setattr(store_module, "STAGE_IN_MEMORY_QUADS", 0)
-        monkeypatch.setattr(store_module, "COMPARE_BYTES", 4096)
-        real = store_module._split_lines
+        monkeypatch.setattr(tuning, "STAGE_IN_MEMORY_QUADS", 0)
+        monkeypatch.setattr(tuning, "COMPARE_BYTES", 4096)
+        real = difference.split_lines
 
         def split(lines: Iterable[bytes], parts: int, stem: Path) -> list[Path]:
             splits.append(parts)
             return real(lines, parts, stem)
 
-        monkeypatch.setattr(store_module, "_split_lines", split)
+        monkeypatch.setattr(difference, "split_lines", split)
     return splits
 
 
@@ -509,11 +513,11 @@ def test_a_replacement_flushes_the_tombstones_of_its_deletes(tmp_path: Path, mon
     """The lines a replacement deletes leave tombstones in RocksDB's memory tables until they
     are flushed: it flushes every FLUSH_DELETES deleted lines, as batched deletes do, and the
     result is still the new version."""
-    monkeypatch.setattr(store_module, "DELETE_LINES", 5)
-    monkeypatch.setattr(store_module, "FLUSH_DELETES", 10)
+    monkeypatch.setattr(tuning, "DELETE_LINES", 5)
+    monkeypatch.setattr(tuning, "FLUSH_DELETES", 10)
     flushes: list[int] = []
-    real = GraphStore._flush
-    monkeypatch.setattr(GraphStore, "_flush", lambda self: (flushes.append(1), real(self)))
+    real = Removal.flush
+    monkeypatch.setattr(Removal, "flush", lambda self: (flushes.append(1), real(self)))
     new = edited(tmp_path)
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
@@ -529,14 +533,14 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     """If the graphs on disk do not end with the staged counts (here: a stray quad the difference
     left), they are dropped and loaded whole from the staged store."""
-    real = GraphStore._apply_difference
+    real = Replacement._apply_difference
 
-    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> dict[str, int]:
+    def apply_and_spoil(self: Replacement, *args: object, **kwargs: object) -> dict[str, int]:
         counts = real(self, *args, **kwargs)  # type: ignore[arg-type]
-        self.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
+        self.store.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
         return counts
 
-    monkeypatch.setattr(GraphStore, "_apply_difference", apply_and_spoil)
+    monkeypatch.setattr(Replacement, "_apply_difference", apply_and_spoil)
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
         sg.load(s, [EXAMPLE])
@@ -549,11 +553,11 @@ def test_a_difference_that_does_not_add_up_falls_back_to_delete_and_load(tmp_pat
 def test_a_fallback_that_does_not_add_up_either_changes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """If the graphs loaded whole do not end with the staged counts either (here: one line of
     the new version lost on the way), the replacement fails and the store stays as it was."""
-    real = GraphStore._apply_difference
+    real = Replacement._apply_difference
 
-    def apply_and_spoil(self: GraphStore, *args: object, **kwargs: object) -> dict[str, int]:
+    def apply_and_spoil(self: Replacement, *args: object, **kwargs: object) -> dict[str, int]:
         counts = real(self, *args, **kwargs)  # type: ignore[arg-type]
-        self.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
+        self.store.oxigraph.add(ox.Quad(ox.NamedNode("urn:stray"), ox.NamedNode("urn:p"), ox.Literal("x"), ox.NamedNode(G)))
         return counts
 
     def lose_a_line(new: dict[str, Path | None], match: object, path: Path) -> Path:
@@ -561,9 +565,9 @@ def test_a_fallback_that_does_not_add_up_either_changes_nothing(tmp_path: Path, 
         path.write_bytes(b"".join(path.read_bytes().splitlines(keepends=True)[1:]))
         return path
 
-    real_relabelled = GraphStore._relabelled
-    monkeypatch.setattr(GraphStore, "_apply_difference", apply_and_spoil)
-    monkeypatch.setattr(GraphStore, "_relabelled", staticmethod(lose_a_line))
+    real_relabelled = Replacement._relabelled
+    monkeypatch.setattr(Replacement, "_apply_difference", apply_and_spoil)
+    monkeypatch.setattr(Replacement, "_relabelled", staticmethod(lose_a_line))
     with sg.open_store(tmp_path / "s") as s:
         copies(s, 3)
         sg.load(s, [EXAMPLE], base_iri=G)
@@ -615,7 +619,7 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
         if when == "while staging":
             monkeypatch.setattr(GraphStore, "_bulk_load", fail_staging)
         elif when == "while writing the old version out":  # beside the staging, on a thread
-            real_dump = GraphStore._dump_graph
+            real_dump = Replacement._dump_graph
 
             def fail_old(store: ox.Store, name: str, path: Path) -> Path | None:
                 if path.name.startswith("old"):
@@ -626,12 +630,12 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
                 raise OSError("disk full (injected)")
 
             # the kept text fails (the old version is then dumped), and so does the dump
-            monkeypatch.setattr(store_module, "read_without_blank_nodes", fail_kept)
-            monkeypatch.setattr(GraphStore, "_dump_graph", staticmethod(fail_old))
+            monkeypatch.setattr(replacement, "read_without_blank_nodes", fail_kept)
+            monkeypatch.setattr(Replacement, "_dump_graph", staticmethod(fail_old))
         elif when == "while deleting what changed":
-            monkeypatch.setattr(GraphStore, "_delete_lines", fail_after(GraphStore._delete_lines))
+            monkeypatch.setattr(Replacement, "_delete_lines", fail_after(Replacement._delete_lines))
         else:
-            monkeypatch.setattr(GraphStore, "_apply_difference", fail_after(GraphStore._apply_difference))
+            monkeypatch.setattr(Replacement, "_apply_difference", fail_after(Replacement._apply_difference))
         with pytest.raises((RuntimeError, OSError), match="injected"):
             sg.load(s, [edited(tmp_path)], base_iri=G, replace=True)
         assert quads(s) == before
@@ -674,7 +678,7 @@ def test_blank_nodes_are_matched_by_their_place_under_their_owner(tmp_path: Path
     """The old and new versions' blank nodes are paired by the path from the instance that owns
     them; nodes with no place of their own (members of a SET of lists, a node reached twice, a
     cycle, a root nothing reaches) stay unpaired, and a literal that ends like a label is none."""
-    from stepnc_graph.store import _BlankMatch
+    from stepnc_graph.store.difference import BlankMatch
 
     rest, first = "<http://www.w3.org/1999/02/22-rdf-syntax-ns#rest>", "<http://www.w3.org/1999/02/22-rdf-syntax-ns#first>"
 
@@ -692,7 +696,7 @@ def test_blank_nodes_are_matched_by_their_place_under_their_owner(tmp_path: Path
 
     old = version("old.nt", {k: f"old{k}" for k in "abcdefgh"})
     new = version("new.nt", {k: f"new{k}" for k in "abcdefgh"})
-    match = _BlankMatch(old, new)
+    match = BlankMatch(old, new)
     assert match.renamed == {b"newa": b"olda", b"newb": b"oldb", b"newc": b"oldc"}
     assert match.relabel(b'_:newc <urn:value> "x _:newa" .\n') == b'_:oldc <urn:value> "x _:newa" .\n'
     assert match.relabel(b"_:newa <urn:r> _:newb .\n") == b"_:olda <urn:r> _:oldb .\n"
@@ -703,7 +707,7 @@ def test_blank_nodes_are_matched_by_their_place_under_their_owner(tmp_path: Path
     assert re.fullmatch(rb"_:[0-9a-f]{32} <urn:r> <urn:x> \.\n", fresh)
     assert match.relabel(b"<urn:x> <urn:r> _:newd .\n") == b"<urn:x> <urn:r> " + fresh.split(b" ")[0] + b" .\n"
     assert match.relabel(b"_:newe <urn:r> <urn:x> .\n") != fresh
-    assert _BlankMatch(None, new).kept == 0 and _BlankMatch(old, None).kept == 0
+    assert BlankMatch(None, new).kept == 0 and BlankMatch(old, None).kept == 0
 
 
 def test_a_large_graph_is_compared_in_parts_that_pair_equal_lines(tmp_path: Path,
@@ -711,9 +715,9 @@ def test_a_large_graph_is_compared_in_parts_that_pair_equal_lines(tmp_path: Path
     """Two dumps too large to hold at once are split by a hash of each line: every part pair
     holds the same lines as the whole files would have matched, the new lines relabelled, and
     the parts' files are gone once compared."""
-    from stepnc_graph.store import _compared_parts
+    from stepnc_graph.store.difference import compared_parts
 
-    monkeypatch.setattr(store_module, "COMPARE_BYTES", 200)
+    monkeypatch.setattr(tuning, "COMPARE_BYTES", 200)
     old, new = tmp_path / "old.nt", tmp_path / "new.nt"
     old_lines = [f"<urn:s{k}> <urn:p> \"{k}\" .\n".encode() for k in range(100)] + [b"_:o1 <urn:p> <urn:x> .\n"]
     new_lines = [f"<urn:s{k}> <urn:p> \"{k}\" .\n".encode() for k in range(50, 150)] + [b"_:n1 <urn:p> <urn:x> .\n"]
@@ -726,7 +730,7 @@ def test_a_large_graph_is_compared_in_parts_that_pair_equal_lines(tmp_path: Path
     pairs = 0
     matched: set[bytes] = set()
     seen_new: list[bytes] = []
-    for old_part, new_part in _compared_parts(old, new, relabel, tmp_path / "parts"):
+    for old_part, new_part in compared_parts(old, new, relabel, tmp_path / "parts"):
         assert old_part is not None
         olds = set(old_part.read_bytes().splitlines(keepends=True))
         news = list(new_part)
@@ -742,11 +746,11 @@ def test_a_large_graph_is_compared_in_parts_that_pair_equal_lines(tmp_path: Path
 def test_deletes_are_split_into_rounds_of_distinct_predicates() -> None:
     """Each round deletes at most the budget, a predicate at most once and at most its share per
     thread; together the rounds delete every quad."""
-    from stepnc_graph.store import _delete_rounds
+    from stepnc_graph.store.batches import delete_rounds
 
     g, h = ox.NamedNode("urn:g"), ox.NamedNode("urn:h")
     work = [(g, "<urn:a>", 23), (g, "<urn:b>", 4), (h, "<urn:a>", 7), (g, "<urn:c>", 0)]
-    rounds = _delete_rounds(work, 10, 2)
+    rounds = delete_rounds(work, 10, 2)
     for part in rounds:
         assert sum(n for _, _, n in part) <= 10 and all(0 < n <= 5 for _, _, n in part)
         assert len({(node, p) for node, p, _ in part}) == len(part)
@@ -762,14 +766,14 @@ def test_large_additions_inside_a_load_go_in_bounded_calls(tmp_path: Path, monke
     """A bulk addition of N-Triples text is split at line ends into calls of about BATCH_CHARS
     characters, and many quads go through the bulk loader in calls: every triple arrives, and a
     blank node keeps its identity across calls (the derived layer shares list cells)."""
-    from stepnc_graph.store import _line_pieces
+    from stepnc_graph.store.batches import line_pieces
 
     text = "".join(f"<urn:s{k}> <urn:p> \"{k}\" .\n" for k in range(200))
-    pieces = list(_line_pieces(text, 100))
+    pieces = list(line_pieces(text, 100))
     assert "".join(pieces) == text and len(pieces) > 10 and all(p.endswith(" .\n") for p in pieces)
-    monkeypatch.setattr(store_module, "BATCH_CHARS", 100)
-    monkeypatch.setattr(store_module, "TRANSACTION_QUADS", 3)
-    monkeypatch.setattr(store_module, "INSERT_BATCH", 4)
+    monkeypatch.setattr(tuning, "BATCH_CHARS", 100)
+    monkeypatch.setattr(tuning, "TRANSACTION_QUADS", 3)
+    monkeypatch.setattr(tuning, "INSERT_BATCH", 4)
     cell = ox.BlankNode()
 
     def quads(n: int, graph: str) -> Iterator[ox.Quad]:  # a generator: add_quads pulls one at a time
@@ -831,10 +835,10 @@ def test_a_bulk_load_worker_that_fails_stops_the_load(tmp_path: Path, monkeypatc
     disk, or while the producer still has chunks to hand over -- stops the producer and the other
     workers; the load fails with the worker's error, the store is as it was, the next writer writes."""
     big = generated(tmp_path, 3000)  # several batches, so the producer waits on full hand-offs
-    read = store_module._ChunkStream.readinto
+    read = batches.ChunkStream.readinto
     reads = itertools.count()
 
-    def failing(self: store_module._ChunkStream, target: object) -> int:
+    def failing(self: batches.ChunkStream, target: object) -> int:
         n = read(self, target)
         if (n == 0) if when == "after the end of input" else next(reads) == 0:
             raise OSError(errno.ENOSPC, "No space left on device (injected)")
@@ -843,7 +847,7 @@ def test_a_bulk_load_worker_that_fails_stops_the_load(tmp_path: Path, monkeypatc
     with sg.open_store(tmp_path / "s") as s:
         sg.load(s, [EXAMPLE])
         before = quads(s)
-        monkeypatch.setattr(store_module._ChunkStream, "readinto", failing)
+        monkeypatch.setattr(batches.ChunkStream, "readinto", failing)
         error = _finishes(lambda: sg.load(s, [big]))
         assert error is not None and "No space left on device (injected)" in str(error)
         monkeypatch.undo()

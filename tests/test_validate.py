@@ -284,13 +284,14 @@ def test_large_input_is_validated_in_a_temporary_store_on_disk(tmp_path: Path, m
     monkeypatch.setattr(module, "MEMORY_VALIDATION_BYTES", 0)
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     opened: list[Any] = []
-    real = api.open_store
+    stores = importlib.import_module("stepnc_graph.store")  # where validation opens its throw-away store
+    real = stores.open_store
 
     def spy(*args: Any, **kwargs: Any) -> Any:
         opened.append((args, kwargs))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(api, "open_store", spy)
+    monkeypatch.setattr(stores, "open_store", spy)
     on_disk = validate([program])
     assert opened and not opened[0][1].get("memory") and str(opened[0][0][0]).startswith(str(tmp_path))
     assert [r.asdict() for r in on_disk.results] == [r.asdict() for r in in_memory.results]

@@ -19,7 +19,7 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from stepnc_graph.core.version import __version__
 
 if TYPE_CHECKING:
     from stepnc_graph.api import (

@@ -18,10 +18,11 @@ from pathlib import Path
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
-from stepnc_graph.loading.loader import LoadResult, Progress, load_source, refuse_graph_name_clashes
+from stepnc_graph.loading.common import LoadResult, Progress, SourceError
+from stepnc_graph.loading.loader import load_paths
 from stepnc_graph.core.naming import P21_NS, GraphNameError
-from stepnc_graph.loading.sources import SourceError, plan_sources, refuse_replacing_other_files
-from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path, graph_layout
+from stepnc_graph.core.naming import graph_layout, program_graphs
+from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, open_store
 
 if TYPE_CHECKING:
     from stepnc_graph.exporting.exporter import export
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
 _LAZY = {"export": "stepnc_graph.exporting.exporter", "link": "stepnc_graph.loading.link", "LinkResult": "stepnc_graph.loading.link",
          "query": "stepnc_graph.querying.query", "QueryResult": "stepnc_graph.querying.query", "validate": "stepnc_graph.validation"}
 
-__all__ = ["Compacted", "GraphInfo", "GraphNameError", "LinkResult", "LoadResult", "QueryResult", "SourceError",
+__all__ = ["Compacted", "GraphInfo", "GraphNameError", "GraphStore", "LinkResult", "LoadResult", "QueryResult", "SourceError",
            "StoreBusy", "StoreError", "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
 
 
@@ -44,22 +45,6 @@ def __getattr__(name: str) -> Any:
         globals()[name] = value
         return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,
-               create: bool | None = None, wait: bool | float = False,
-               on_wait: Callable[[Writer], None] | None = None) -> GraphStore:
-    """The on-disk store at ``path`` (default: ``$STEPNC_GRAPH_STORE`` or ``./.stepnc-graph``), or an in-memory one.
-
-    A store opened for writing (the default) holds the store's writer lock until
-    it is closed (use ``with``); another writer gets :class:`StoreBusy`, or waits
-    with ``wait``. ``readonly=True`` reads the last published state without
-    blocking anyone and never creates a store (``create`` defaults to ``not readonly``).
-    """
-    if memory:
-        return GraphStore(None)
-    return GraphStore(path or default_store_path(), readonly=readonly,
-                      create=not readonly if create is None else create, wait=wait, on_wait=on_wait)
 
 
 def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
@@ -77,12 +62,8 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
     for a throw-away store that only :func:`validate` reads; so is ``positions=False``
     (Part 21 files: no ``p21:id``/``p21:line`` triples, the lines in ``LoadResult.lines``).
     """
-    sources = plan_sources(list(paths), base_iri)
-    refuse_graph_name_clashes(store, [s.graph for s in sources])
-    if not replace:
-        refuse_replacing_other_files(store, sources)
-    return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions)
-            for s in sources]
+    return load_paths(store, paths, lenient=lenient, base_iri=base_iri, progress=progress, replace=replace,
+                      derived=derived, positions=positions)
 
 
 def unload(store: Store, graph: str, compact: bool = False) -> bool:
@@ -91,7 +72,7 @@ def unload(store: Store, graph: str, compact: bool = False) -> bool:
     comes from the store's records (:meth:`~stepnc_graph.core.naming.GraphLayout.unloaded_with`), so
     another program is never removed with it; the vocabulary graph and a derived layer on its
     own raise :class:`~stepnc_graph.core.naming.GraphNameError`. Beside other programs the store
-    compacts once enough was deleted (:data:`~stepnc_graph.store.COMPACT_AT`); ``compact`` gives
+    compacts once enough was deleted (:data:`~stepnc_graph.store.tuning.COMPACT_AT`); ``compact`` gives
     the space back now."""
     companions = graph_layout(store).unloaded_with(graph)
     return store.remove_graph(graph, companions=companions, compact=compact)
@@ -114,11 +95,12 @@ def compact(store: Store, progress: Callable[[int, int], None] | None = None) ->
     that removed programs still hold (:meth:`GraphStore.compact` says why an unload alone does
     not). ``progress(done, total)`` counts the quads copied. A SPARQL endpoint manages its own
     storage: :class:`StoreError`."""
-    if not isinstance(store, GraphStore):
+    before = store.maintenance()
+    if before is None:
         raise StoreError("compact works on a stepnc-graph store directory; a SPARQL endpoint manages its own storage")
-    before = store.disk_bytes()
     store.compact(progress)
-    return Compacted(before, store.disk_bytes(), store.count())
+    after = store.maintenance()
+    return Compacted(before.disk_bytes, after.disk_bytes if after else 0, store.count())
 
 
 @dataclass(frozen=True)
@@ -137,12 +119,6 @@ class GraphInfo:
 
 def _int(value: str | None) -> int | None:
     return int(value) if value is not None else None
-
-
-def program_graphs(store: Store) -> list[str]:
-    """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary,
-    derived layers, link graphs or other graphs a user added."""
-    return sorted(graph_layout(store).programs)
 
 
 def info(store: Store) -> list[GraphInfo]:

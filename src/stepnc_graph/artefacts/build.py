@@ -14,13 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from stepnc_graph.generators.generic import GenericVocabularyGenerator
-from stepnc_graph.generators.html import HtmlReferenceGenerator
-from stepnc_graph.generators.context import JsonLdContextGenerator
-from stepnc_graph.generators.owl import OwlGenerator
-from stepnc_graph.generators.p21 import P21VocabularyGenerator
-from stepnc_graph.generators.pyvocab import PythonVocabularyGenerator
-from stepnc_graph.generators.shacl import ShapesGenerator
+from stepnc_graph.generators.registry import GENERATORS, Inputs
 from stepnc_graph.mapping.plans import Plans
 from stepnc_graph.schema import cache, editions
 from stepnc_graph.schema.catalog import EDITIONS, load_catalog_model
@@ -39,27 +33,18 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     """All generated files, keyed by path relative to the project root."""
     catalog, model = load_catalog_model(express_directory)
     naming = catalog.naming
-    out: dict[str, str] = {}
-    for rel, text in OwlGenerator(model, catalog, naming).outputs().items():
-        out[f"ontology/{rel}"] = text
-    for rel, text in GenericVocabularyGenerator(model, naming).outputs().items():
-        out[f"ontology/{rel}"] = text
-    for rel, text in P21VocabularyGenerator(catalog.ontology_version).outputs().items():
-        out[f"ontology/{rel}"] = text
     plans = Plans(model, naming)
-    for rel, text in JsonLdContextGenerator(plans, naming).outputs().items():
-        out[f"ontology/{rel}"] = text
+    queries = catalog.directory.parent.parent / "queries"  # the library's examples, where there is one
+    inputs = Inputs(model, catalog, naming, plans, queries)
+    out: dict[str, str] = {}
+    generated: dict[str, dict[str, str]] = {}
+    for entry in GENERATORS:
+        generated[entry.name] = entry.make(inputs).outputs()
+        for rel, text in generated[entry.name].items():
+            out[f"{entry.directory}/{rel}"] = text
     digest = cache.express_digest(catalog.directory)
     out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
-    shapes = ShapesGenerator(model, catalog, naming).outputs()
-    for rel, text in shapes.items():
-        out[f"shapes/{rel}"] = text
-    out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(shapes, catalog.directory.parent.parent / "shapes")
-    queries = catalog.directory.parent.parent / "queries"  # the library's examples, where there is one
-    for rel, text in HtmlReferenceGenerator(model, catalog, naming, queries).outputs().items():
-        out[f"docs/{rel}"] = text
-    for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
-        out[f"src/stepnc_graph/{rel}"] = text
+    out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(generated["shacl"], catalog.directory.parent.parent / "shapes")
     out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
     return out
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import click
 
-from stepnc_graph import __version__
+from stepnc_graph.core.version import __version__
 from stepnc_graph.cli import link, ontology, plan, query, schema, serve, store, validate
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,

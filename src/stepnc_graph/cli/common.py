@@ -34,7 +34,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn, TypeVar, cast
 
 import click
 
-from stepnc_graph.core.errors import CONTROLS, escaped
+from stepnc_graph.core.errors import CONTROLS, StepncGraphError, escaped
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -173,7 +173,7 @@ def escape(text: str) -> str:
     return rich_escape(text)
 
 
-class UsageProblem(Exception):
+class UsageProblem(StepncGraphError):
     """A request the command cannot carry out as given (exit 2)."""
 
 
@@ -217,15 +217,10 @@ def fail_input(exc: Exception, fmt: str = "text") -> NoReturn:
 
 
 def user_errors() -> tuple[type[BaseException], ...]:
-    """The exceptions that mean bad input or usage, not a bug (imported when needed)."""
-    from stepnc_graph.exporting.exporter import ExportError
-    from stepnc_graph.core.naming import GraphNameError
-    from stepnc_graph.part21 import Part21SyntaxError
-    from stepnc_graph.loading.sources import SourceError
-    from stepnc_graph.store import StoreError
-
-    return (UsageProblem, StoreError, SourceError, GraphNameError, ExportError, Part21SyntaxError, OSError,
-            UnicodeError)
+    """The exceptions that mean bad input or usage, not a bug: the project's error root (every
+    error it raises for a user derives from it) and what the operating system or a decoder says
+    of an input file."""
+    return (StepncGraphError, OSError, UnicodeError)
 
 
 

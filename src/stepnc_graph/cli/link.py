@@ -51,7 +51,7 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bo
     (--allow-unknown; they are listed); 2 rows matched no single entity (none
     linked, they are listed), or bad input or usage.
     """
-    from stepnc_graph.loading.sources import check_iri
+    from stepnc_graph.loading.common import check_iri
 
     if graph is not None:
         check_iri(graph, "--graph")

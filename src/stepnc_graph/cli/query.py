@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import click
 
+from stepnc_graph.core.formats import QUERY_RESULT_FORMATS
+from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_OK,
@@ -28,7 +30,7 @@ from stepnc_graph.cli.common import (
 if TYPE_CHECKING:
     from stepnc_graph.store import Store
 
-FORMATS = ("table", "csv", "tsv", "json", "md")
+FORMATS = QUERY_RESULT_FORMATS
 
 
 def _fail(message: str) -> None:
@@ -55,7 +57,7 @@ def load_programs(store: Store, files: list[Path], lenient: bool) -> None:
         results = load(store, files, lenient=lenient)
     except Part21SyntaxError as exc:
         _fail(f"{exc}\nnothing loaded; --lenient loads what can be read")
-    except (OSError, ValueError) as exc:
+    except (OSError, StepncGraphError) as exc:
         _fail(str(exc))
     for r in results:
         if r.diagnostics:

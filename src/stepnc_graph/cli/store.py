@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
+from stepnc_graph.core.formats import export_format_names
 from stepnc_graph.cli.common import (
     EXIT_BAD_INPUT,
     EXIT_NONCONFORMING,
@@ -39,8 +40,7 @@ if TYPE_CHECKING:
     from rich.progress import Progress
 
     from stepnc_graph.cli.common import RemoteOptions
-    from stepnc_graph.loading.loader import LoadResult
-    from stepnc_graph.loading.sources import Source
+    from stepnc_graph.loading.common import LoadResult, Source
     from stepnc_graph.store import Store
 
 _COLOURS = {"error": "red", "warning": "yellow"}
@@ -171,7 +171,7 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
 
 def _check_graph(graph: str | None, what: str = "--graph") -> None:
     if graph is not None:
-        from stepnc_graph.loading.sources import check_iri
+        from stepnc_graph.loading.common import check_iri
 
         check_iri(graph, what)
 
@@ -181,7 +181,7 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @with_endpoint
 @click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
                                             "or the only one.")
-@click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21"]),
+@click.option("--format", "fmt", type=click.Choice(export_format_names()),
               required=True, help="p21 writes the graph back as a Part 21 file; jsonld-tree frames a program as a "
                                   "tree (project, workplans, workingsteps, operation, tool, feature).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -312,7 +312,7 @@ def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
 
 def _location(store: Store) -> str:
     """Where a store is, for users: its absolute directory, its endpoint, or "memory"."""
-    return str(store.path.resolve()) if store.path else str(getattr(store, "endpoint", "memory"))
+    return store.location
 
 
 def _quad_progress(fmt: str) -> Any:
@@ -336,7 +336,8 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
     with open_reader(store_path, remote) as store:
         rows = info(store)
         location = _location(store)
-        deleted = getattr(store, "deleted_quads", None)  # an endpoint manages its own storage
+        maintenance = store.maintenance()  # None: an endpoint manages its own storage
+        deleted = maintenance.deleted_quads if maintenance is not None else None
     if fmt == "json":
         echo_json({"store": location, "graphs": [r.asdict() for r in rows], "deleted_quads": deleted})
         return

@@ -59,8 +59,8 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     any result). Exit codes: 0 no violation (warnings and infos do not fail),
     1 violations, 2 bad input, refused shapes or usage.
     """
-    from stepnc_graph.loading.sources import check_iri
-    from stepnc_graph.validation import ShapesError, validate
+    from stepnc_graph.loading.common import check_iri
+    from stepnc_graph.validation import validate
 
     in_store = store_path is not None or remote.wanted(store_path, bool(files))
     if bool(files) == in_store:
@@ -72,16 +72,15 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     if allow_service:
         err.print("[yellow]warning:[/] --allow-service: SERVICE clauses in the shapes send requests to the servers "
                   "they name", markup=True, highlight=False)
-    try:
-        if in_store:
-            with open_reader(store_path, remote) as store:
-                report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity,
-                                  iso_shapes=not no_iso, allow_service=allow_service)
-        else:
-            report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
+    # refused shapes, unreadable data, a store that cannot be read: errors of the project's root,
+    # reported by @reports_errors (exit 2)
+    if in_store:
+        with open_reader(store_path, remote) as store:
+            report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity,
                               iso_shapes=not no_iso, allow_service=allow_service)
-    except (ShapesError, ValueError) as exc:
-        raise UsageProblem(str(exc)) from None
+    else:
+        report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
+                          iso_shapes=not no_iso, allow_service=allow_service)
     text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
     write_out(text, uchar=fmt != "text")
     sys.exit(EXIT_OK if report.passes else EXIT_NONCONFORMING)

@@ -19,6 +19,12 @@ WINDOW = 60
 _ELLIPSIS = "..."
 
 
+class StepncGraphError(Exception):
+    """The root of every error stepnc-graph reports to a user: bad input or usage (the CLI prints
+    it and exits 2). Each subclass keeps the built-in base it had (``ValueError``, ``SyntaxError``,
+    ``OSError``), so code that caught those still catches it."""
+
+
 class StepncGraphWarning(UserWarning):
     """A warning of stepnc-graph's own (the CLI prints these; other libraries' follow Python's filters)."""
 
@@ -77,7 +83,7 @@ def render_caret(source_line: str, column: int) -> str:
     return f"    {line}\n    {prefix}^"
 
 
-class PositionedSyntaxError(SyntaxError):
+class PositionedSyntaxError(StepncGraphError, SyntaxError):
     """A `SyntaxError` that knows its file, 1-based line and column, and source line.
 
     Shared by the EXPRESS and Part 21 readers so that every syntax error of the

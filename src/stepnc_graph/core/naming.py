@@ -51,8 +51,12 @@ from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
+from stepnc_graph.core.errors import StepncGraphError
+
 if TYPE_CHECKING:
     from rdflib import Namespace, URIRef
+
+    from stepnc_graph.store.contract import Store
 
 STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
 ONTOLOGY_BASE = "https://w3id.org/stepnc-graph/iso14649/"
@@ -227,7 +231,7 @@ def alias_iri(graph_iri: str, scope: str, label: str) -> str:
 # -- which graph names belong to whom ---------------------------------------------------------------
 
 
-class GraphNameError(ValueError):
+class GraphNameError(StepncGraphError, ValueError):
     """A graph name that would take the place of another graph of the store, or a reserved one."""
 
 
@@ -429,3 +433,37 @@ class GraphLayout:
         own = companion_names(program)
         return sorted(name for name, owner in self.links.items()
                       if owner == program and name in own and name not in self.programs)
+
+
+def graph_layout(store: Store) -> GraphLayout:
+    """What each named graph of ``store`` is, from its records (:class:`GraphLayout`): the program
+    graphs (``p21:ExchangeStructure``) and the link graphs with their program (``p21:LinkGraph``,
+    ``p21:linkedProgram``). One query, answered from the indexes of those two classes, on any store.
+    The one place that decides which graphs are programs: stores know graphs, not programs."""
+    import pyoxigraph as ox
+
+    rows = store.query(f"SELECT ?g ?program WHERE {{ GRAPH ?g {{ {{ ?g a <{P21_NS}ExchangeStructure> }} UNION "
+                       f"{{ ?g a <{P21_NS}LinkGraph> ; <{P21_NS}linkedProgram> ?program }} }} }}")
+    programs: set[str] = set()
+    links: dict[str, str] = {}
+    for row in rows:
+        graph, program = row[0], row[1]
+        if not isinstance(graph, ox.NamedNode):
+            continue
+        if program is None:
+            programs.add(graph.value)
+        elif isinstance(program, ox.NamedNode):
+            links[graph.value] = program.value
+    return GraphLayout(frozenset(store.all_graphs()), frozenset(programs), links)
+
+
+def program_graphs(store: Store) -> list[str]:
+    """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary,
+    derived layers, link graphs or other graphs a user added."""
+    return sorted(graph_layout(store).programs)
+
+
+def listed_graphs(store: Store) -> list[str]:
+    """The graphs a user names (:meth:`GraphLayout.listed`): the loaded files' graphs, link graphs
+    and graphs users added; not staging graphs, the vocabulary graph or a derived layer."""
+    return graph_layout(store).listed()

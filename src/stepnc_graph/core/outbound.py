@@ -29,6 +29,8 @@ import re
 from collections.abc import Iterator
 from typing import Any
 
+from stepnc_graph.core.errors import StepncGraphError
+
 #: what --allow-service allows, for messages
 OPT_IN = "--allow-service"
 _ESCAPE = re.compile(r"\\u([0-9A-Fa-f]{4})|\\U([0-9A-Fa-f]{8})")
@@ -36,7 +38,7 @@ _ESCAPE = re.compile(r"\\u([0-9A-Fa-f]{4})|\\U([0-9A-Fa-f]{8})")
 _OUTBOUND = {"ServiceGraphPattern": "SERVICE", "Load": "LOAD"}
 
 
-class OutboundRefused(ValueError):
+class OutboundRefused(StepncGraphError, ValueError):
     """SPARQL that would send a request to another server (``SERVICE``, ``LOAD``), refused.
 
     ``keyword`` is what was found (``SERVICE`` or ``LOAD``); ``str()`` is the

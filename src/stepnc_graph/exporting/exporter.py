@@ -17,20 +17,21 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.formats import EXPORT_FORMATS, export_format, export_format_names
 from stepnc_graph.generators.context import context
 from stepnc_graph.mapping.plans import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
-from stepnc_graph.core.naming import P21_NS
+from stepnc_graph.core.naming import P21_NS, listed_graphs
 from stepnc_graph.schema.catalog import iso14649
-from stepnc_graph.store import GraphStore, Store
+from stepnc_graph.store.contract import Store
 
-FORMATS = ("ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21")
-_OX = {"ttl": ox.RdfFormat.TURTLE, "nt": ox.RdfFormat.N_TRIPLES, "nq": ox.RdfFormat.N_QUADS,
-       "trig": ox.RdfFormat.TRIG}
-QUAD_FORMATS = ("nq", "trig")
+#: the export formats' names (:data:`~stepnc_graph.core.formats.EXPORT_FORMATS`)
+FORMATS = export_format_names()
+QUAD_FORMATS = tuple(f.name for f in EXPORT_FORMATS if f.quads)
 
 
-class ExportError(ValueError):
+class ExportError(StepncGraphError, ValueError):
     """An export that cannot be done as asked (unknown graph, p21 of several graphs, ...)."""
 
 
@@ -40,12 +41,13 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
     Triple formats (ttl, nt, jsonld of one graph, p21) need a graph unless the
     store holds exactly one; nq and trig keep graph names.
     """
-    if fmt not in FORMATS:
+    chosen = export_format(fmt)
+    if chosen is None:
         raise ExportError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
     if graph is not None and not store.has_graph(graph):
         raise ExportError(f"no graph {graph} in the store")
-    if graph is None and fmt in ("ttl", "nt", "p21"):
-        graphs = store.graphs()
+    if graph is None and chosen.one_graph:
+        graphs = listed_graphs(store)
         if len(graphs) != 1:
             raise ExportError(f"--format {fmt} writes one graph and the store has {len(graphs)}; choose one with "
                               f"--graph (see `stepnc-graph info`) or use nq/trig")
@@ -54,11 +56,11 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
         assert graph is not None
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
     # the canonical order walks the graph node by node: a remote graph is copied here first
-    local = store if isinstance(store, GraphStore) else store.local_copy(graph)  # type: ignore[attr-defined]
-    if fmt in ("jsonld", "jsonld-tree"):
+    local = store if store.capabilities.local_reads else store.local_copy(graph)
+    if chosen.rdf is None:  # JSON-LD, compacted or framed
         return _jsonld(local, graph, fmt == "jsonld-tree")
     prefixes = context(iso14649()[0].naming)
-    return _serialize(_OX[fmt], canonical_quads(local, graph), fmt not in QUAD_FORMATS, prefixes)
+    return _serialize(getattr(ox.RdfFormat, chosen.rdf), canonical_quads(local, graph), not chosen.quads, prefixes)
 
 
 def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,
@@ -71,7 +73,7 @@ def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,
     return buffer.getvalue()
 
 
-def canonical_quads(store: GraphStore, graph: str | None = None,
+def canonical_quads(store: Store, graph: str | None = None,
                     graphs: list[str] | None = None) -> Iterator[ox.Quad]:
     """The quads of ``graph`` in the canonical order; for None, of ``graphs`` (default: every
     graph, the vocabulary and derived layers included, and the default graph), in IRI order.
@@ -110,7 +112,7 @@ def _object_key(term: object) -> tuple[int, str]:
     return (1, "") if isinstance(term, ox.BlankNode) else (0, str(term))
 
 
-def _graph_quads(store: GraphStore, graph: str, labels: _Labels, scope: str) -> Iterator[ox.Quad]:
+def _graph_quads(store: Store, graph: str, labels: _Labels, scope: str) -> Iterator[ox.Quad]:
     db = store.oxigraph
     g = ox.NamedNode(graph)
     numbered = sorted((int(str(q.object.value)), q.subject)  # type: ignore[union-attr]
@@ -133,7 +135,7 @@ def _graph_quads(store: GraphStore, graph: str, labels: _Labels, scope: str) -> 
             yield from _subtree(db, g, scope + "x", node, seen, labels)
 
 
-def _named_subjects(store: GraphStore, graph: str) -> list[ox.NamedNode]:
+def _named_subjects(store: Store, graph: str) -> list[ox.NamedNode]:
     """The named subjects of the graph that are not numbered instances (metadata, aliases, sections)."""
     rows = store.query(f"SELECT DISTINCT ?s WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o "
                        f"FILTER(isIRI(?s) && NOT EXISTS {{ ?s <{P21_NS}id> ?i }}) }} }}")
@@ -190,10 +192,10 @@ def _shallow(db: ox.Store, g: ox.NamedNode, term: object) -> str:
                             for q in db.quads_for_pattern(term, None, None, g)))
 
 
-def _jsonld(store: GraphStore, graph: str | None, tree: bool = False) -> bytes:
+def _jsonld(store: Store, graph: str | None, tree: bool = False) -> bytes:
     """JSON-LD compacted with the generated context (``tree``: a readable, framed tree); see
     :mod:`stepnc_graph.exporting.jsonld`."""
     from stepnc_graph.exporting.jsonld import export_jsonld
 
     # a JSON-LD document of the store is its programs (and links), what a PLM system takes
-    return export_jsonld(canonical_quads(store, graph, None if graph else store.graphs()), graph, tree)
+    return export_jsonld(canonical_quads(store, graph, None if graph else listed_graphs(store)), graph, tree)

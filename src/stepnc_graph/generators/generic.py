@@ -43,7 +43,7 @@ from stepnc_graph.core.naming import (
 from stepnc_graph.schema.model import Attribute
 from stepnc_graph.schema.view import SchemaModel
 from stepnc_graph.vocabulary.typemap import value_shape
-from stepnc_graph.graphs.vocabulary_graph import ANALYSIS_CLASSES, ANALYSIS_PROPERTIES, CORE_DEFINITIONS, derived_entities
+from stepnc_graph.vocabulary.analysis import ANALYSIS_CLASSES, ANALYSIS_PROPERTIES, CORE_DEFINITIONS, derived_entities
 
 
 def attributes_by_name(model: SchemaModel) -> dict[str, list[Attribute]]:

@@ -20,7 +20,7 @@ from stepnc_graph.core.naming import Naming
 from stepnc_graph.schema.catalog import Catalog
 from stepnc_graph.schema.model import DefinedType, Entity, EnumerationType, SelectType
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.graphs.vocabulary_graph import CORE_DEFINITIONS
+from stepnc_graph.vocabulary.analysis import CORE_DEFINITIONS
 
 _WORD = re.compile(r"[a-z_][a-z0-9_]*")
 

@@ -44,6 +44,7 @@ from stepnc_graph.generators.express_sparql import (
     translate_rule,
 )
 from stepnc_graph.generators.rdfio import stable_turtle
+from stepnc_graph.generators.shacl_supertypes import add_abstract, add_oneof
 from stepnc_graph.core.naming import P21, P21_NS, Naming
 from stepnc_graph.schema.catalog import Catalog
 from stepnc_graph.schema.model import (
@@ -55,7 +56,6 @@ from stepnc_graph.schema.model import (
     EnumerationType,
     NamedType,
     SimpleType,
-    SupertypeExpr,
     TypeRef,
     WhereRule,
 )
@@ -81,6 +81,9 @@ class RuleCoverage:
 
 class ShapesGenerator:
     """Builds ``shapes/core.ttl``, ``shapes/support.ttl`` and ``shapes/<schema>.ttl``."""
+
+    #: the namespace of the shapes it names (also for :mod:`.shacl_supertypes`)
+    shapes = SHAPES
 
     def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None) -> None:
         self.model = model
@@ -261,9 +264,9 @@ class ShapesGenerator:
             if r.derived and target is not None:
                 self.add_derived(g, shape, e, target)
         if e.abstract:
-            self.add_abstract(g, e)
+            add_abstract(self, g, e)
         if e.supertype_expr is not None:
-            self.add_oneof(g, e, e.supertype_expr)
+            add_oneof(self, g, e, e.supertype_expr)
         for rule in e.where_rules:
             self.add_rule(g, e, rule)
 
@@ -390,69 +393,6 @@ class ShapesGenerator:
         g.add((subject, pred, head))
 
     # -- abstract, ONEOF ----------------------------------------------------------------------
-
-    def add_abstract(self, g: Graph, e: Entity) -> None:
-        """An instance of an ABSTRACT entity must be an instance of one of its subtypes."""
-        shape = SHAPES[f"{e.name}-abstract"]
-        g.add((shape, RDF.type, SH.NodeShape))
-        g.add((shape, SH.targetClass, self.n.declaration(e.name)))
-        self.annotate(g, shape, e.name, f"{e.name} ABSTRACT")
-        g.add((shape, SH.message, Literal(f"{e.name} is ABSTRACT: an instance must be of one of its subtypes")))
-        subs = self.model.subtypes(e.name)
-        if not subs:
-            g.add((shape, SH["not"], SHAPES[f"{e.name}-abstract-any"]))
-            g.add((SHAPES[f"{e.name}-abstract-any"], RDF.type, SH.NodeShape))
-            return
-        alternatives = []
-        for s in subs:
-            alt = BNode(f"abstract_{e.name}_{s}")
-            g.add((alt, SH["class"], self.n.declaration(s)))
-            alternatives.append(alt)
-        self._list(g, shape, SH["or"], alternatives)
-
-    def add_oneof(self, g: Graph, e: Entity, expr: SupertypeExpr) -> None:
-        """``ONEOF(a, b, c)``: an instance of ``a`` is of neither ``b`` nor ``c`` (each pair once).
-
-        An operand ``(x ANDOR y)`` holds the instances of ``x`` or ``y``. An
-        operand listed twice (``face_bound`` in topological_representation_item)
-        is taken once: read literally it would exclude itself.
-        """
-        for k, operands in enumerate(self._oneofs(expr), 1):
-            for i, names in enumerate(operands[:-1]):
-                later = [n for other in operands[i + 1:] for n in other]
-                for first in names:
-                    shape = SHAPES[f"{e.name}-oneof{k}-{first}"]
-                    g.add((shape, RDF.type, SH.NodeShape))
-                    g.add((shape, SH.targetClass, self.n.declaration(first)))
-                    self.annotate(g, shape, e.name, f"{e.name} SUPERTYPE OF {expr}")
-                    g.add((shape, SH.message, Literal(f"ONEOF in {e.name}: {first} excludes {', '.join(later)}")))
-                    alternatives = []
-                    for other in later:
-                        alt = BNode(f"oneof_{e.name}_{first}_{other}")
-                        g.add((alt, SH["class"], self.n.declaration(other)))
-                        alternatives.append(alt)
-                    inner = BNode(f"oneof_{e.name}_{first}")
-                    g.add((shape, SH["not"], inner))
-                    self._list(g, inner, SH["or"], alternatives)
-
-    def _oneofs(self, expr: SupertypeExpr) -> list[list[list[str]]]:
-        """Each ONEOF in ``expr``: its operands, each the names whose instances belong to it."""
-        out: list[list[list[str]]] = []
-        if expr.op == "ONEOF":
-            operands: list[list[str]] = []
-            seen: set[str] = set()
-            for o in expr.operands:
-                if isinstance(o, SupertypeExpr) and o.op != "ANDOR":
-                    raise NotImplementedError("ONEOF over an AND or ONEOF operand")  # none in the shipped schemas
-                names = [n for n in (o.names() if isinstance(o, SupertypeExpr) else [o]) if n not in seen]
-                seen.update(names)
-                if names:
-                    operands.append(names)
-            out.append(operands)
-        for o in expr.operands:
-            if isinstance(o, SupertypeExpr):
-                out.extend(self._oneofs(o))
-        return out
 
     # -- WHERE rules ----------------------------------------------------------------------
 

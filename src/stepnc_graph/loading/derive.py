@@ -78,7 +78,7 @@ from stepnc_graph.core.naming import (
 )
 from stepnc_graph.schema.model import AggregateType, TypeRef
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.graphs.vocabulary_graph import ANALYSIS_CLASSES, derived_entities
+from stepnc_graph.vocabulary.analysis import ANALYSIS_CLASSES, derived_entities
 
 if TYPE_CHECKING:
     from stepnc_graph.store import Store
@@ -91,7 +91,7 @@ XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
 #: the layer's format: what the library queries expect to find (``sga:layerVersion`` on the layer).
 #: 2: steps carry their program, workingstep #id, operation #id and class; class counts
 LAYER_VERSION = 2
-#: characters of layer text per bulk-load call: the store's own batch (see store.BATCH_CHARS)
+#: characters of layer text per bulk-load call: the store's own batch (see store.tuning.BATCH_CHARS)
 TEXT_PIECE = 12_000_000
 
 #: Program structures whose members run in a given order (a LIST) or in no
@@ -500,9 +500,7 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         order.triples(graph), order.feature_triples(), instance_counts(reader, graph),
         [f"<{layer}> {_sga('layerOf')} <{graph}> .\n", f"<{layer}> {_sga('layerVersion')} {_integer(LAYER_VERSION)} .\n"]))
     del order
-    from stepnc_graph.store import GraphStore
-
-    if isinstance(store, GraphStore):
+    if store.capabilities.blank_node_writes:
         # The quads that hold blank nodes go as quads (a blank node has no name SPARQL or a
         # second text could give it), streamed: in one transaction when few, else in bulk calls
         written += store.add_quads(lists.index_quads(node))

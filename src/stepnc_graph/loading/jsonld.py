@@ -57,15 +57,16 @@ from typing import Any
 
 import pyoxigraph as ox
 
-from stepnc_graph import __version__
-from stepnc_graph.loading.loader import DCT, PROV, RDFS, LoadResult, Progress, load_time
+from stepnc_graph.core.formats import INPUT_FORMATS
+from stepnc_graph.core.version import __version__
+from stepnc_graph.loading.common import DCT, PROV, RDFS, LoadResult, Progress, load_time
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
 from stepnc_graph.core.naming import CONTEXT_IRI, P21_NS, TOOL_IRI, alias_iri, instance_prefix
 from stepnc_graph.part21.diagnostics import Diagnostic
-from stepnc_graph.loading.sources import Source, SourceError
+from stepnc_graph.loading.common import Source, SourceError
 from stepnc_graph.store import Store
 
-SUFFIXES = (".jsonld",)
+SUFFIXES = next(f.suffixes for f in INPUT_FORMATS if f.name == "jsonld")
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
 XSD = "http://www.w3.org/2001/XMLSchema#"
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
@@ -303,7 +304,7 @@ class _Contexts:
                               "a processor would process all of it again here, for every node)", self.name,
                               pointer=pointer(path))
         if self.shipped is None:
-            from stepnc_graph.exporting.jsonld import shipped_context
+            from stepnc_graph.vocabulary.jsonld_context import shipped_context
 
             self.shipped = shipped_context().source
         return self.shipped
@@ -361,7 +362,7 @@ class _Contexts:
         for i, entry in enumerate(entries):
             if not isinstance(entry, dict) or entry is self.shipped:
                 continue
-            from stepnc_graph.exporting.jsonld import shipped_context
+            from stepnc_graph.vocabulary.jsonld_context import shipped_context
 
             shipped = shipped_context().source
             for term, definition in entry.items():

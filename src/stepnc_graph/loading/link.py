@@ -41,8 +41,8 @@ from typing import Any
 
 import pyoxigraph as ox
 
-from stepnc_graph import __version__
-from stepnc_graph.loading.loader import DCT, PROV, RDFS, load_time
+from stepnc_graph.core.version import __version__
+from stepnc_graph.loading.common import DCT, PROV, RDFS, load_time
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
 from stepnc_graph.core.naming import (
     P21_NS,
@@ -51,8 +51,9 @@ from stepnc_graph.core.naming import (
     instance_prefix,
     link_graph_iri,
 )
-from stepnc_graph.loading.sources import SourceError, check_iri
-from stepnc_graph.store import GraphStore, Store, graph_layout
+from stepnc_graph.loading.common import SourceError, check_iri
+from stepnc_graph.core.naming import graph_layout, program_graphs
+from stepnc_graph.store.contract import Store
 
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
@@ -385,7 +386,7 @@ class Labelled:
 class ProgramIndex:
     """The program's instances by ``#id`` and by its_id, read once from the store."""
 
-    def __init__(self, store: GraphStore, graph: str, plans: Plans) -> None:
+    def __init__(self, store: Store, graph: str, plans: Plans) -> None:
         self.graph, self.plans = graph, plans
         g = ox.NamedNode(graph)
         self.ids = {int(str(q.object.value)): q.subject.value  # type: ignore[union-attr]
@@ -444,7 +445,6 @@ def program_link_graphs(store: Store, graph: str) -> list[str]:
 
 
 def _only_program(store: Store) -> str:
-    from stepnc_graph.api import program_graphs
 
     graphs = program_graphs(store)
     if len(graphs) != 1:
@@ -453,7 +453,7 @@ def _only_program(store: Store) -> str:
     return graphs[0]
 
 
-def link(store: GraphStore, mapping: str | Path, graph: str | None = None, *, allow_unknown: bool = False,
+def link(store: Store, mapping: str | Path, graph: str | None = None, *, allow_unknown: bool = False,
          replace: bool = False) -> LinkResult:
     """Attach the PLM identifiers of ``mapping`` to the instances of the program ``graph``
     (default: the store's only program), in the link graph of that mapping, atomically.
@@ -500,7 +500,7 @@ def link(store: GraphStore, mapping: str | Path, graph: str | None = None, *, al
     return result
 
 
-def _refuse_other_mapping(store: GraphStore, target: str, path: Path, replace: bool) -> None:
+def _refuse_other_mapping(store: Store, target: str, path: Path, replace: bool) -> None:
     if replace or not store.has_graph(target):
         return
     node = ox.NamedNode(target)

@@ -7,18 +7,15 @@ Oxigraph's bulk loader -- so memory follows the file text, not its instances.
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 import time
-from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
-from stepnc_graph import __version__
+from stepnc_graph.core.version import __version__
 from stepnc_graph.mapping import ntriples as T
 from stepnc_graph.mapping.mapper import InstanceMapper
 from stepnc_graph.loading.derive import derive, iso14649_rules
@@ -45,17 +42,16 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.part21.format import format_header, format_value
 from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
-from stepnc_graph.loading.sources import Source
-from stepnc_graph.store import Chunk, Companion, GraphStore, Shadow, Store, graph_layout
+from stepnc_graph.core.formats import reads_as
+from stepnc_graph.loading.sources import plan_sources, refuse_replacing_other_files
+from stepnc_graph.loading.common import DCT, OWL_SAME_AS, PROV, RDFS, LoadResult, Progress, Source, load_time
+from stepnc_graph.core.naming import graph_layout
+from stepnc_graph.store.contract import Chunk, Companion, Shadow, Store
 from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary
 
 if TYPE_CHECKING:
     from stepnc_graph.loading.jsonld import JsonLdLoad
 
-DCT = "http://purl.org/dc/terms/"
-OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
-PROV = "http://www.w3.org/ns/prov#"
-RDFS = "http://www.w3.org/2000/01/rdf-schema#"
 #: A DATA section opener anywhere (files written on one line exist). A match
 #: inside a string only adds section triples, which still round-trip; missing
 #: a real opener would merge sections on export.
@@ -67,46 +63,6 @@ CHUNK_LINES = 20000
 #: derived-layer lines the mapper collects before they go to the store as one companion chunk
 #: (~10 MB of text: each chunk is one more bulk-load call, so not many, and not all kept to the end)
 DERIVED_CHUNK_LINES = 60000
-
-Progress = Callable[[int, int], None]
-
-
-@dataclass
-class LoadResult:
-    """What one file's load did; ``instances`` counts mapped and raw instances.
-
-    ``triples`` are the file's graph; ``derived_triples`` its derived layer
-    (``<graph>/derived``, see :mod:`stepnc_graph.loading.derive`).
-    """
-
-    path: str
-    graph: str
-    instances: int = 0
-    raw: int = 0  # kept raw: do not fit the schema, or (unreadable) do not parse
-    unreadable: int = 0
-    unreadable_texts: int = 0  # text that names no instance, kept (p21:unreadableText)
-    triples: int = 0
-    defined: int = 0
-    derived_triples: int = 0
-    seconds: float = 0.0
-    diagnostics: list[Diagnostic] = field(default_factory=list)
-    #: the Part 21 mapper wrote the graph and saw every list within its bounds (see
-    #: :mod:`stepnc_graph.validation.implied`); False for a JSON-LD load
-    lists_within_bounds: bool = field(default=False, repr=False)
-    #: ... and saw a value for every mandatory attribute (no ``$`` or ``*`` there)
-    mandatory_values_set: bool = field(default=False, repr=False)
-    #: each instance's line by #id, for a load that wrote no ``p21:id``/``p21:line``
-    #: triples (``positions=False``); None otherwise
-    lines: dict[int, int] | None = field(default=None, repr=False)
-
-    def asdict(self) -> dict[str, Any]:
-        return {
-            "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
-            "unreadable_instances": self.unreadable, "unreadable_texts": self.unreadable_texts,
-            "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
-            "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],
-        }
-
 
 def _header_triples(g: str, header: Header) -> list[str]:
     """DCTERMS / p21 triples for the HEADER fields of ISO 10303-21 8.2."""
@@ -138,15 +94,6 @@ def _header_triples(g: str, header: Header) -> list[str]:
     if header.repaired:
         add(P21_NS + "repairedHeaderText", format_header(header))
     return out
-
-
-def load_time() -> datetime:
-    """Now, or ``$SOURCE_DATE_EPOCH`` when set: the reproducible-builds convention, so that
-    two loads of one file give byte-identical exports (CI, PLM diffs)."""
-    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
-    if epoch.isdigit():
-        return datetime.fromtimestamp(int(epoch), timezone.utc)
-    return datetime.now(timezone.utc)
 
 
 class _Load:
@@ -407,7 +354,7 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
     validation reads (shapes see the program graph alone). ``positions=False``
     (Part 21 only) writes no ``p21:id``/``p21:line`` triples and returns the lines
     in :attr:`LoadResult.lines` instead, for the same use."""
-    if source.path is not None and source.path.suffix.lower() == ".jsonld":
+    if source.path is not None and reads_as(source.path, "jsonld"):
         from stepnc_graph.loading.jsonld import JsonLdLoad
 
         job: _Load | JsonLdLoad = JsonLdLoad.of_source(source, progress)
@@ -431,7 +378,7 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
         count = len(job.diagnostics()) + len(extra)
         store.add_ntriples(where, f"<{job.graph}> <{P21_NS}diagnosticCount> {T.integer(count)} .\n")
         job.result.triples += 1
-        if store.path is not None or not isinstance(store, GraphStore):
+        if store.capabilities.persistent:
             # a persistent store (on disk, or remote) always holds the vocabulary; a
             # throw-away one gets it when a query first needs it (query.execute)
             ensure_vocabulary(store)
@@ -442,6 +389,18 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))
     job.result.seconds = time.perf_counter() - job.started
     return job.result
+
+
+def load_paths(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
+               progress: Progress | None = None, replace: bool = False, derived: bool = True,
+               positions: bool = True) -> list[LoadResult]:
+    """:func:`stepnc_graph.api.load`: each input into its own named graph, planned first."""
+    sources = plan_sources(list(paths), base_iri)
+    refuse_graph_name_clashes(store, [s.graph for s in sources])
+    if not replace:
+        refuse_replacing_other_files(store, sources)
+    return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions)
+            for s in sources]
 
 
 def refuse_graph_name_clashes(store: Store, graphs: Sequence[str]) -> None:

@@ -11,45 +11,21 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.formats import input_suffixes, reads_as
 from stepnc_graph.core.naming import DATA_BASE, instance_prefix
+from stepnc_graph.loading.common import Source, SourceError, check_iri
 from stepnc_graph.store import Store
 
+__all__ = ["STDIN", "SUFFIXES", "Source", "SourceError", "check_iri", "plan_sources", "refuse_replacing_other_files"]
+
 #: file name endings of Part 21 programs, and of program graphs in JSON-LD, compared case-insensitively
-SUFFIXES = (".stp", ".step", ".p21", ".jsonld")
+SUFFIXES = input_suffixes()
 STDIN = "-"
-
-
-class SourceError(ValueError):
-    """Inputs that cannot be loaded as asked (a graph IRI twice, stdin without --base-iri, ...)."""
-
-
-@dataclass(frozen=True)
-class Source:
-    """One input of a load: ``path`` None means standard input; ``name`` is what messages show."""
-
-    name: str
-    path: Path | None
-    graph: str
-
-    @property
-    def identity(self) -> str:
-        """What the graph records as its source (``dcterms:source``): the absolute path, or the name."""
-        return str(self.path.resolve()) if self.path is not None else self.name
-
-
-def check_iri(value: str, what: str) -> str:
-    """``value`` if it is an absolute IRI; else :class:`SourceError` saying where it came from."""
-    try:
-        ox.NamedNode(value)
-    except ValueError as e:
-        raise SourceError(f"{what}: {value!r} is not an absolute IRI ({e})") from None
-    return value
 
 
 def _relative_name(relative: Path) -> str:
@@ -91,7 +67,7 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
             graph = base_iri
         else:
             graph = (instance_prefix(base_iri) if base_iri is not None else DATA_BASE) + local
-        if path is not None and base_iri is None and path.suffix.lower() == ".jsonld":
+        if path is not None and base_iri is None and reads_as(path, "jsonld"):
             from stepnc_graph.loading.jsonld import named_graph_of  # a JSON-LD document names its graph
 
             graph = named_graph_of(path) or graph

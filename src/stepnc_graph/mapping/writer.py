@@ -23,6 +23,7 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.mapping.plans import (
     P21_DERIVED,
     P21_EMPTY,
@@ -55,7 +56,7 @@ _DEFAULT_HEADER = ("HEADER;\nFILE_DESCRIPTION(('stepnc-graph export'),'2;1');\n"
                    "FILE_SCHEMA(({schemas}));\nENDSEC;")
 
 
-class WriteError(ValueError):
+class WriteError(StepncGraphError, ValueError):
     """A graph that cannot be written as Part 21 (a value that fits no parameter)."""
 
 

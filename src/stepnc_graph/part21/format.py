@@ -11,12 +11,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.part21.reader import Header, Instance
 from stepnc_graph.part21.strings import encode
 from stepnc_graph.part21.values import DERIVED, UNSET, Binary, Enum, Name, Ref, Typed
 
 
-class FormatError(ValueError):
+class FormatError(StepncGraphError, ValueError):
     """A value that Part 21 cannot write (infinity, NaN)."""
 
 

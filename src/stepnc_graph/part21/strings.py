@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import re
 
+from stepnc_graph.core.errors import StepncGraphError
+
 _CODE_PAGES = {c: f"iso8859_{i}" for i, c in enumerate("ABCDEFGHI", start=1)}
 #: ``\S\c`` shifts a character of the basic alphabet (space to '~') to the upper half
 _ESCAPE = re.compile(r"\\(?:\\|S\\([ -~])|P([A-I])\\|X\\([0-9A-Fa-f]{2})|X2\\((?:[0-9A-Fa-f]{4})*)\\X0\\|"
                      r"X4\\((?:[0-9A-Fa-f]{8})*)\\X0\\|N\\|F\\)", re.S)
 
 
-class StringDecodeError(ValueError):
+class StringDecodeError(StepncGraphError, ValueError):
     """A backslash that starts no valid escape; ``offset`` is within the literal's content."""
 
     def __init__(self, message: str, offset: int) -> None:

@@ -42,6 +42,8 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.formats import QUERY_RESULT_FORMATS
 from stepnc_graph.core.naming import (
     ANALYSIS_NS,
     ATTRIBUTE_NS,
@@ -50,13 +52,14 @@ from stepnc_graph.core.naming import (
     STEPNC_NS,
     VOCABULARY_GRAPH,
     derived_graph_iri,
+    listed_graphs,
 )
 from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_queries, vocabulary_status
 
 if TYPE_CHECKING:
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.contract import Store
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 #: Prefixes every query may use without declaring them (library queries declare theirs anyway).
@@ -75,7 +78,7 @@ PREFIXES: dict[str, str] = {
 }
 #: Prefixes used to shorten IRIs in the ``table`` and ``md`` formats only.
 DISPLAY_PREFIXES = {**PREFIXES, "data": DATA_BASE}
-FORMATS = ("table", "csv", "tsv", "json", "md")
+FORMATS = QUERY_RESULT_FORMATS
 PARAM_TYPES = ("class", "iri", "string", "integer", "decimal", "boolean")
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 _PARAM = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\((?P<type>[a-z]+)\)\s*"
@@ -83,7 +86,7 @@ _PARAM = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\((?P<type>[a-z]+)\)\s
 _POSITION = re.compile(r"error at (\d+):(\d+): (.*)", re.S)
 
 
-class QueryError(ValueError):
+class QueryError(StepncGraphError, ValueError):
     """A query that cannot run as asked: syntax error, bad parameter, unknown name or graph.
 
     ``source`` is the query file (or ``-e``), ``line``/``column`` 1-based
@@ -238,7 +241,7 @@ def _expand(value: str) -> str:
     return value
 
 
-def _class_term(store: GraphStore, value: str) -> ox.NamedNode:
+def _class_term(store: Store, value: str) -> ox.NamedNode:
     iri = _expand(value) if ":" in value else STEPNC_NS + value.lower()
     node = ox.NamedNode(iri)
     known = store.query(f"SELECT ?c WHERE {{ GRAPH <{VOCABULARY_GRAPH}> {{ ?c a <http://www.w3.org/2002/07/owl#Class> "
@@ -253,7 +256,7 @@ def _class_term(store: GraphStore, value: str) -> ox.NamedNode:
     raise ValueError(f"no class {value!r} in the vocabulary" + (f"; did you mean {', '.join(close)}?" if close else ""))
 
 
-def to_term(store: GraphStore, type_: str, value: str) -> ox.NamedNode | ox.Literal:
+def to_term(store: Store, type_: str, value: str) -> ox.NamedNode | ox.Literal:
     """``value`` (command-line text) as an RDF term of ``type_``; ValueError says what was expected."""
     if type_ == "class":
         return _class_term(store, value)
@@ -290,7 +293,7 @@ def _guess(value: str) -> str:
     return "string"
 
 
-def bind(store: GraphStore, query: Query, given: Mapping[str, str]) -> dict[ox.Variable, ox.NamedNode | ox.Literal]:
+def bind(store: Store, query: Query, given: Mapping[str, str]) -> dict[ox.Variable, ox.NamedNode | ox.Literal]:
     """The terms to substitute: declared parameters (given or default), and undeclared ones by their look."""
     out: dict[ox.Variable, ox.NamedNode | ox.Literal] = {}
     for name in given:
@@ -572,7 +575,7 @@ def _readable(message: str) -> str:
     return f"expected {words[0].strip()}" if len(words) == 1 else f"expected one of {', '.join(w.strip() for w in words)}"
 
 
-def dataset(store: GraphStore, graph: str | None, library: bool = False) -> dict[str, Any]:
+def dataset(store: Store, graph: str | None, library: bool = False) -> dict[str, Any]:
     """The query dataset: every graph as default graph and the files' graphs for GRAPH ?program,
     or one file's graph, its derived layer and the vocabulary.
 
@@ -586,19 +589,19 @@ def dataset(store: GraphStore, graph: str | None, library: bool = False) -> dict
     if graph is None:
         if library:
             return {"use_default_graph_as_union": True}
-        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in store.graphs()]}
-    if graph not in store.graphs():
+        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in listed_graphs(store)]}
+    if graph not in listed_graphs(store):
         raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     return {"default_graph": [ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],
             "named_graphs": [ox.NamedNode(graph)]}
 
 
-def _warnings(store: GraphStore, graph: str | None, vocabulary: bool = True) -> list[str]:
+def _warnings(store: Store, graph: str | None, vocabulary: bool = True) -> list[str]:
     out = []
     status = vocabulary_status(store) if vocabulary else "current"
     if status != "current":
         out.append(f"the store's vocabulary graph is {status}: load a file again to refresh it")
-    graphs = [graph] if graph else store.graphs()
+    graphs = [graph] if graph else listed_graphs(store)
     missing = [g for g in graphs if not store.has_graph(derived_graph_iri(g))]
     if missing:
         out.append(f"no derived layer for {', '.join(missing)} (loaded by an older stepnc-graph): load it again")
@@ -610,7 +613,7 @@ def _warnings(store: GraphStore, graph: str | None, vocabulary: bool = True) -> 
     return out
 
 
-def _current_layers(store: GraphStore) -> set[str]:
+def _current_layers(store: Store) -> set[str]:
     """The files whose derived layer is of the version the library expects (derive.LAYER_VERSION)."""
     from stepnc_graph.loading.derive import LAYER_VERSION
 
@@ -628,7 +631,7 @@ def refuse_service(query: Query, allow: bool = False) -> None:
         raise QueryError(str(exc), query.source) from None
 
 
-def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = None,
+def execute(store: Store, query: Query, params: Mapping[str, str] | None = None,
             graph: str | None = None, *, allow_service: bool = False) -> QueryResult:
     """Run ``query`` with ``params`` (command-line strings) over the store or one file's ``graph``.
 
@@ -661,7 +664,7 @@ def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = 
     return QueryResult("select", variables, warnings=warnings, _json=data)
 
 
-def query(store: GraphStore, name_or_text: str, *, graph: str | None = None, allow_service: bool = False,
+def query(store: Store, name_or_text: str, *, graph: str | None = None, allow_service: bool = False,
           **params: Any) -> QueryResult:
     """Run a library query (by name), a ``.rq`` file or SPARQL text; keyword arguments are parameters.
 

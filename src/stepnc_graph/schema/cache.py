@@ -44,7 +44,7 @@ from typing import Any
 
 from stepnc_graph.core.errors import StepncGraphWarning
 from stepnc_graph.core.resources import sources_digest
-from stepnc_graph.schema.catalog import Catalog, load_catalog_model
+from stepnc_graph.schema.catalog_file import Catalog, load_catalog_model
 from stepnc_graph.schema.model import (
     AggregateType,
     Attribute,

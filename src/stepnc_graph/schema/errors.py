@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.schema.model import SourcePos
 
 
-class SchemaError(Exception):
+class SchemaError(StepncGraphError):
     """A schema that parses but does not resolve: unknown type, cycle, duplicate name."""
 
     def __init__(self, message: str, pos: SourcePos | None = None, schema: str | None = None) -> None:

@@ -44,7 +44,8 @@ from urllib.parse import parse_qsl, urlencode, urlsplit
 import pyoxigraph as ox
 
 from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
-from stepnc_graph.store import GraphStore, StoreError, _Locks
+from stepnc_graph.store import GraphStore, StoreError
+from stepnc_graph.store.locks import Locks
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 #: result bytes above which a response is refused (a browser or script asking for a whole store)
@@ -116,7 +117,7 @@ class _Backend:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait(timeout=20)
-        _Locks.release(self.lock_fd)
+        Locks.release(self.lock_fd)
         self.lock_fd = None
 
 
@@ -172,10 +173,10 @@ class Endpoint:
             current = (self.store / "CURRENT").read_text().strip() if (self.store / "CURRENT").exists() else ""
             if not current:
                 raise ServeError(f"no published store in {self.store}")
-            fd = _Locks.try_lock(self.store / f"{current}.lock", shared=True)
+            fd = Locks.try_lock(self.store / f"{current}.lock", shared=True)
             if fd is not None and (self.store / current).is_dir():
                 return current, fd
-            _Locks.release(fd)
+            Locks.release(fd)
             time.sleep(0.01)
         raise ServeError(f"cannot get a consistent view of {self.store}")
 
@@ -186,7 +187,7 @@ class Endpoint:
         try:
             return self._start_backend(self.store / generation, fd)
         except BaseException:
-            _Locks.release(fd)
+            Locks.release(fd)
             raise
 
     def _follow(self) -> None:

@@ -2,7 +2,7 @@
 so that replacing the graph need not dump its old version from Oxigraph.
 
 A replacement compares the old version of a graph with the new one line by line
-(:meth:`stepnc_graph.store.GraphStore._replace_by_difference`). Dumped from the store, the old
+(:mod:`stepnc_graph.store.replacement`). Dumped from the store, the old
 version costs Oxigraph 5-8 µs of CPU a quad, as it decodes every term: about 120 s of a 1M-instance
 program's 13.6M quads, the largest share of such a replacement (measured). The load's own text
 gives the same lines -- the mapper writes terms as Oxigraph does -- but for the labels of blank
@@ -10,7 +10,7 @@ nodes, which Oxigraph's bulk loader renames. So a load also writes its text here
 thread of its own as it goes by (zlib level 1: a 1M-instance program's 1.9 GB of N-Triples take
 128 MB and about 3.6 s of CPU, where level 1 of zstd would take 60 MB and 0.9 s but a dependency),
 and a replacement reads the old version's lines without blank node from it and only the lines
-with one (12 % of a real program's) from the store (:meth:`GraphStore._old_from_kept`).
+with one (12 % of a real program's) from the store (:meth:`~stepnc_graph.store.replacement.Replacement._old_from_kept`).
 
 **Never a wrong text.** ``index.json`` names the published generation it describes and, for each
 graph, the file of its text and that text's line count. It is written after that generation is

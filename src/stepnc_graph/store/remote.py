@@ -57,9 +57,10 @@ from urllib.parse import urlsplit, urlunsplit
 import pyoxigraph as ox
 
 from stepnc_graph.store.bindings import bind_in_groups
-from stepnc_graph.core.naming import STAGING, refuse_strangers
+from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
 from stepnc_graph.core.outbound import outbound_keyword
-from stepnc_graph.store import Chunk, Companion, Shadow, StoreError, graph_layout
+from stepnc_graph.store import StoreError
+from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Shadow
 
 ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
 TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
@@ -395,11 +396,6 @@ class RemoteStore:
         """Every named graph but staging ones."""
         return sorted(g for g in self._all_graphs() if not g.startswith(STAGING))
 
-    def graphs(self) -> list[str]:
-        """The loaded files' graphs (and graphs `link` or users added): not the vocabulary graph or a
-        program's derived layer, as :meth:`GraphStore.graphs`."""
-        return graph_layout(self).listed()
-
     def has_graph(self, graph: str) -> bool:
         return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
 
@@ -443,6 +439,35 @@ class RemoteStore:
     @property
     def oxigraph(self) -> ox.Store:
         raise StoreError(f"{self.endpoint} is a remote store: it has no embedded Oxigraph database")
+
+    # -- the store contract (stepnc_graph.store.contract) --------------------------------
+
+    #: persistent; blank nodes cannot be named across requests, reads are requests, and the
+    #: endpoint manages its own storage
+    capabilities = Capabilities(persistent=True, blank_node_writes=False, local_reads=False, compactable=False)
+
+    @property
+    def location(self) -> str:
+        return str(self.endpoint)
+
+    def maintenance(self) -> None:
+        """None: the endpoint manages its own storage."""
+        return None
+
+    def compact(self, progress: Callable[[int, int], None] | None = None) -> None:
+        raise StoreError("compact works on a stepnc-graph store directory; a SPARQL endpoint manages its own storage")
+
+    def add_quads(self, quads: Iterable[ox.Quad]) -> int:
+        raise StoreError(f"{self.endpoint} is a remote store: quads with blank nodes cannot be sent to it as they "
+                         "are (see Capabilities.blank_node_writes)")
+
+    def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]:
+        """The named graphs' quads that match, in one SELECT request."""
+        given = (subject, predicate, obj, graph)
+        names = ("s", "p", "o", "g")
+        s, p, o, g = (f"?{v}" if t is None else str(t) for t, v in zip(given, names, strict=True))
+        for row in self.query(f"SELECT * WHERE {{ GRAPH {g} {{ {s} {p} {o} }} }}"):
+            yield ox.Quad(*(row[v] if t is None else t for t, v in zip(given, names, strict=True)))
 
 
 def _content(response: Any, timeout: float) -> bytes:

@@ -439,7 +439,7 @@ def check_jsonld(data: bytes, listener: LoopbackListener | None = None, name: st
     exception propagates (the caller records it as a traceback)."""
     global _watch
     import stepnc_graph as sg
-    from stepnc_graph.loading.sources import SourceError
+    from stepnc_graph.loading.common import SourceError
 
     before = listener.connections if listener is not None else 0
     seen: list[str] = []

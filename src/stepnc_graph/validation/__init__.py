@@ -28,7 +28,9 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.naming import DATA_BASE, P21_NS, instance_id
+from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.naming import DATA_BASE, P21_NS, instance_id, program_graphs
+from stepnc_graph.store.contract import Store, is_store
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.validation import compiled
 from stepnc_graph.validation import components as C
@@ -49,10 +51,14 @@ from stepnc_graph.validation.shapes import (
 )
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
-    from stepnc_graph.loading.loader import LoadResult
+    from stepnc_graph.loading.common import LoadResult
 
 __all__ = ["CompiledShapes", "CompiledShapesWarning", "DataError", "IllFormedShapes", "Result", "ShapesError",
-           "UnsupportedShapes", "ValidationReport", "shape_files", "validate"]
+           "UnsupportedShapes", "ValidationError", "ValidationReport", "shape_files", "validate"]
+
+
+class ValidationError(StepncGraphError, ValueError):
+    """A validation asked in a way it cannot run: an unknown severity, a graph the store does not hold."""
 
 SHAPES_NS = "https://w3id.org/stepnc-graph/shapes#"
 STEPNC_NS = "https://w3id.org/stepnc-graph/iso14649#"
@@ -181,8 +187,6 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
     :class:`~stepnc_graph.part21.Part21SyntaxError` for a Part 21 file that does not parse. A shape whose SPARQL has a ``SERVICE``
     clause is refused (ShapesError) unless ``allow_service``.
     """
-    from stepnc_graph.store import GraphStore
-
     started = time.perf_counter()
     files = (shape_files(shapes_dir, process) if iso_shapes else []) + [Path(p) for p in extra_shapes]
     if not files:
@@ -191,17 +195,17 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
     shapes, checks = compiled_shapes, compiled_shapes.checks
     level = severity.capitalize()
     if level not in SEVERITIES:
-        raise ValueError(f"severity must be one of {', '.join(s.lower() for s in SEVERITIES)}")
+        raise ValidationError(f"severity must be one of {', '.join(s.lower() for s in SEVERITIES)}")
     refuse_service(list(checks), allow_service)  # before any file is loaded or graph copied
     needs_shapes = any(f"<{SHAPES_GRAPH}>" in c.query for c in checks)
-    if isinstance(source, GraphStore):
-        if needs_shapes and source.path is not None:
+    if is_store(source) and source.capabilities.local_reads:
+        if needs_shapes and source.capabilities.persistent:
             raise UnsupportedShapes("a SPARQL constraint reading $shapesGraph runs on files, not on a store "
                                     "validated in place")
         if needs_shapes:
             _add_shapes_graph(source.oxigraph, shapes)
         report = _validate_store(source, graphs, shapes, list(checks), {})
-    elif hasattr(source, "local_copy"):  # a remote store: its graphs are copied here and checked
+    elif is_store(source):  # reads are requests: the graphs are copied here and checked
         targets = list(graphs) if graphs is not None else program_graphs(source)
         with source.local_copy(targets) as copy:
             if needs_shapes:
@@ -218,7 +222,7 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
                     needs_shapes: bool, iso_shapes: bool) -> ValidationReport:
     """Load the files into a throw-away store (Part 21 by the loader, and JSON-LD program graphs
     when the ISO shapes run; other RDF by :mod:`.rdfdata`) and check each file's graph."""
-    from stepnc_graph.api import load
+    from stepnc_graph.loading.loader import load_paths as load
 
     rdf = [p for p in paths if rdf_format(p, programs=iso_shapes) is not None and not p.is_dir()]
     programs = [p for p in paths if p not in rdf]
@@ -302,7 +306,7 @@ def _input_bytes(paths: Sequence[str | Path]) -> int:
 @contextmanager
 def throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
     """An in-memory store for the files ``paths``, or a temporary on-disk one when they are large."""
-    from stepnc_graph.api import open_store
+    from stepnc_graph.store import open_store
 
     if _input_bytes(paths) <= MEMORY_VALIDATION_BYTES:
         with open_store(memory=True) as store:
@@ -311,12 +315,6 @@ def throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
     with tempfile.TemporaryDirectory(prefix="stepnc-graph-validate-") as tmp:
         with open_store(Path(tmp) / "store") as store:
             yield store
-
-
-def program_graphs(store: object) -> list[str]:
-    """The graphs of a store that hold a loaded Part 21 file."""
-    rows = store.query(f"SELECT DISTINCT ?g WHERE {{ GRAPH ?g {{ ?g a <{P21_NS}ExchangeStructure> }} }}")  # type: ignore[attr-defined]
-    return sorted(str(r[0].value) for r in rows)
 
 
 def _implied_skips(store: ox.Store, loaded: LoadResult) -> frozenset[str]:
@@ -331,16 +329,16 @@ def _implied_skips(store: ox.Store, loaded: LoadResult) -> frozenset[str]:
                      | ({implied.MANDATORY_SET} if loaded.mandatory_values_set else set()))
 
 
-def _validate_store(store: object, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
+def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
                     diagnostics: dict[str, list[Diagnostic]], mapped: Mapping[str, LoadResult] | None = None,
                     data: Mapping[str, RdfLoad] | None = None) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
     ran = 0
-    oxstore: ox.Store = store.oxigraph  # type: ignore[attr-defined]
+    oxstore: ox.Store = store.oxigraph
     for graph in targets:
         if not oxstore.contains_named_graph(ox.NamedNode(graph)):
-            raise ValueError(f"no graph {graph} in the store")
+            raise ValidationError(f"no graph {graph} in the store")
         loaded = mapped.get(graph) if mapped else None  # written by this call's Part 21 mapping
         rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, loaded) if loaded else frozenset(),
                       shapes.hierarchy, allow_service=True)  # validate() refused what it must before

@@ -47,6 +47,7 @@ import pyoxigraph as ox
 
 from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.validation import components as C
+from stepnc_graph.validation.literals import FOLDED, ILL_TYPED, LITERAL, LITERALS_GRAPH
 from stepnc_graph.validation.shapes import (
     RDF_FIRST,
     RDFS,
@@ -63,10 +64,6 @@ P21_NS = "https://w3id.org/stepnc-graph/p21#"
 TARGETS = ("targetClass", "targetNode", "targetSubjectsOf", "targetObjectsOf")
 #: the named graph a query reads as ``$shapesGraph`` (loaded only when a check names it)
 SHAPES_GRAPH = "urn:stepnc-graph:validate:shapes-graph"
-#: the named graph holding what the data's literals were before Oxigraph stored them (:mod:`.rdfdata`)
-LITERALS_GRAPH = "urn:stepnc-graph:validate:literals"
-LITERAL = "<urn:stepnc-graph:validate#literal>"
-ILL_TYPED = "<urn:stepnc-graph:validate#illTyped>"
 RDFS_CLASS = f"<{RDFS}Class>"
 OWL_IMPORTS = "<http://www.w3.org/2002/07/owl#imports>"
 SUBCLASS_OF = f"<{RDFS}subClassOf>"
@@ -425,8 +422,6 @@ class RunContext:
         return f"({test} || {v} IN ({', '.join(individuals)}))" if individuals else test
 
     def datatype_test(self, v: str, dt: str, k: int) -> str:
-        from stepnc_graph.validation.rdfdata import FOLDED
-
         plain = f"(isLiteral({v}) && sameTerm(datatype({v}), {dt}))"
         if not self.literals:
             return plain

@@ -13,7 +13,7 @@ valid integer. ``sh:datatype`` must see the literal as written: so each
 literal of an XSD datatype is checked against its lexical space here (an
 ill-typed literal is reported, and fails ``sh:datatype``), and the types of the
 integer literals Oxigraph folds are noted in a side graph
-(:data:`~.engine.LITERALS_GRAPH`) that the datatype checks read.
+(:data:`~.literals.LITERALS_GRAPH`) that the datatype checks read.
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ from pathlib import Path
 
 import pyoxigraph as ox
 
-from stepnc_graph.validation.engine import ILL_TYPED, LITERAL, LITERALS_GRAPH
+from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.validation.literals import FOLDED, ILL_TYPED, INTEGER_RANGES, LITERAL, LITERALS_GRAPH
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 SUFFIXES = {".ttl": ox.RdfFormat.TURTLE, ".nt": ox.RdfFormat.N_TRIPLES, ".nq": ox.RdfFormat.N_QUADS,
@@ -37,15 +38,6 @@ SUFFIXES = {".ttl": ox.RdfFormat.TURTLE, ".nt": ox.RdfFormat.N_TRIPLES, ".nq": o
 #: JSON-LD document otherwise; Oxigraph's parser then refuses a remote context (no network)
 PROGRAM_SUFFIXES = frozenset({".jsonld"})
 
-#: integer ranges of the XSD integer types (None: unbounded)
-INTEGER_RANGES: dict[str, tuple[int | None, int | None]] = {
-    "integer": (None, None), "long": (-2**63, 2**63 - 1), "int": (-2**31, 2**31 - 1), "short": (-2**15, 2**15 - 1),
-    "byte": (-128, 127), "nonNegativeInteger": (0, None), "positiveInteger": (1, None),
-    "nonPositiveInteger": (None, 0), "negativeInteger": (None, -1), "unsignedLong": (0, 2**64 - 1),
-    "unsignedInt": (0, 2**32 - 1), "unsignedShort": (0, 2**16 - 1), "unsignedByte": (0, 255),
-}
-#: datatypes Oxigraph stores as xsd:integer
-FOLDED = frozenset(XSD + n for n in INTEGER_RANGES if n != "integer")
 
 _TZ = r"(?:Z|[+-](?:(?:0\d|1[0-3]):[0-5]\d|14:00))?"
 _DATE = r"-?(?:[1-9]\d{4,}|\d{4})-(\d{2})-(\d{2})"
@@ -108,7 +100,7 @@ def _real_day(lexical: str) -> bool:
     return 1 <= day <= days
 
 
-class DataError(ValueError):
+class DataError(StepncGraphError, ValueError):
     """An RDF data file that cannot be read (its position in the message)."""
 
 

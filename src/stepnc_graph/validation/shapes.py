@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import StepncGraphError
+
 SH = "http://www.w3.org/ns/shacl#"
 RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
 RDFS = "http://www.w3.org/2000/01/rdf-schema#"
@@ -27,7 +29,7 @@ RDF_TYPE, RDF_FIRST, RDF_REST, RDF_NIL = (f"<{RDF}{n}>" for n in ("type", "first
 SUBCLASS = f"<{RDFS}subClassOf>"
 
 
-class ShapesError(Exception):
+class ShapesError(StepncGraphError):
     """A shapes file that cannot be read or uses SHACL the engine does not run."""
 
 

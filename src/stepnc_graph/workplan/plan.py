@@ -30,13 +30,14 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri
+from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri, listed_graphs
 from stepnc_graph.querying.query import PREFIXES
 
 if TYPE_CHECKING:
     import networkx as nx
 
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.contract import Store
 
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#b07aa1", "#76b7b2", "#edc948", "#ff9da7", "#9c755f", "#bab0ac",
            "#e15759")
@@ -48,7 +49,7 @@ def _ink(fill: str) -> str:
     return "#222" if 0.2126 * r + 0.7152 * g + 0.0722 * b > 0.5 else "#fff"
 
 
-class PlanError(ValueError):
+class PlanError(StepncGraphError, ValueError):
     """No such program in the store, or a store the plan cannot be read from."""
 
 
@@ -96,7 +97,7 @@ class Precedence:
     rough: int
 
 
-def _rows(store: GraphStore, graph: str, query: str) -> list[list[str]]:
+def _rows(store: Store, graph: str, query: str) -> list[list[str]]:
     """The rows of ``query`` over one program (its graph, its derived layer and the vocabulary; ``GRAPH
     ?g`` for the program's own triples): each value the term's text ("" when unbound), in the order
     SELECTed. Read as SPARQL CSV, which Oxigraph writes and Python's csv module reads without a
@@ -309,13 +310,13 @@ def _thing(info: dict[str, Thing], iri: str | None) -> Thing | None:
     return info.get(iri) or Thing(iri, "", "", "")
 
 
-def _things(store: GraphStore, graph: str, named: str, info: dict[str, Thing]) -> None:
+def _things(store: Store, graph: str, named: str, info: dict[str, Thing]) -> None:
     """Add the Things ``named`` names (a SPARQL pattern binding ``?x``) to ``info``."""
     for x, label, n, cls in _rows(store, graph, _THINGS.replace("NAMED", named)):
         info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
 
 
-def _elements(store: GraphStore, graph: str) -> list[tuple[str, str, int]]:
+def _elements(store: Store, graph: str) -> list[tuple[str, str, int]]:
     """(structure, member, index) of every program structure: a workplan's elements in list order
     (index = place in the list), the members of the others (index: 1/2 for an if statement's
     branches, 1 for a loop's body, 0 for the sets of parallel, non-sequential and selective)."""
@@ -331,7 +332,7 @@ def _elements(store: GraphStore, graph: str) -> list[tuple[str, str, int]]:
     return out
 
 
-def _steps(store: GraphStore, graph: str, info: dict[str, Thing], features: dict[str, list[str]],
+def _steps(store: Store, graph: str, info: dict[str, Thing], features: dict[str, list[str]],
            operations: dict[str, str]) -> list[Step]:
     """The execution steps in order, with the things they name and whether they rough or finish."""
     kinds: dict[str, str] = {}
@@ -349,13 +350,13 @@ def _steps(store: GraphStore, graph: str, info: dict[str, Thing], features: dict
     return steps
 
 
-def build_plan(store: GraphStore, graph: str | None = None, *, network: bool = True) -> Plan:
+def build_plan(store: Store, graph: str | None = None, *, network: bool = True) -> Plan:
     """The plan of the program in ``graph`` (or the store's only program); without ``network``, the
     steps only (no :attr:`Plan.graph`: what `stepnc-graph plan` needs for its summary and picture)."""
     from stepnc_graph.graphs.vocabulary_graph import vocabulary_for_queries
 
     vocabulary_for_queries(store)
-    programs = store.graphs()
+    programs = listed_graphs(store)
     if graph is None:
         if len(programs) != 1:
             raise PlanError(f"the store holds {len(programs)} programs; choose one with --graph "

@@ -1,0 +1,167 @@
+"""The store contract: what every store back end offers and what it declares it can do.
+
+Callers (loading, export, queries, validation, the CLI) hold a :class:`Store` and ask its
+:class:`Capabilities` where back ends differ; they never test which back end they have. A
+new back end implements this protocol and passes ``tests/test_store_contract.py``, which runs
+the same checks against every store (in memory, on disk, a remote SPARQL endpoint).
+
+The store knows named graphs and quads, not programs: which graphs are programs, link graphs or
+derived layers is read from the graphs' own records by :mod:`stepnc_graph.core.naming`
+(:func:`~stepnc_graph.core.naming.graph_layout`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol, TypeGuard
+
+import pyoxigraph as ox
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a back end can do, declared by it (in the manner of rdflib's ``Store`` flags).
+
+    ``persistent``: its data outlives the process (a directory, an endpoint): a load writes the
+    vocabulary graph into it, and a check reading ``$shapesGraph`` is not run in place on it.
+    ``blank_node_writes``: :meth:`Store.add_quads` keeps the blank nodes it is given (an
+    embedded database); elsewhere blank nodes cannot be named across requests, so a writer
+    copies them with SPARQL Update inside the store. ``local_reads``: reading node by node
+    (:meth:`Store.quads_for_pattern`, :attr:`Store.oxigraph`) is cheap; elsewhere the graphs
+    are copied first (:meth:`Store.local_copy`). ``compactable``: :meth:`Store.compact` gives
+    disk space back.
+    """
+
+    persistent: bool
+    blank_node_writes: bool
+    local_reads: bool
+    compactable: bool
+
+
+@dataclass(frozen=True)
+class Maintenance:
+    """The storage state of a store that manages its own files (see :meth:`Store.maintenance`):
+    quads deleted since the last compaction (their space comes back then) and bytes on disk."""
+
+    deleted_quads: int
+    disk_bytes: int
+
+
+@dataclass(frozen=True)
+class Companion:
+    """Text for a companion graph of a load (its derived layer), met among the load's chunks.
+
+    A companion chunk is loaded where its graph is written now (a staging graph
+    during an in-memory or remote replacement), so a loader can write the
+    companion while it streams the main graph instead of keeping it for later.
+    """
+
+    graph: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Shadow:
+    """Lines of a companion graph that the load writes later as quads (``before_commit``), met
+    among the load's chunks as text whose blank nodes are named as in the main graph's chunks.
+
+    A store does not load them: a blank node cannot be named across documents, so the load
+    writes those quads itself. A replacement compares them, with the rest of the load's text,
+    against the version in the store (see :mod:`stepnc_graph.store`).
+    """
+
+    graph: str
+    text: str
+
+
+Chunk = str | Companion | Shadow
+
+
+class Store(Protocol):
+    """Every member a caller may use of a store (:class:`~stepnc_graph.store.GraphStore` in
+    memory or on disk, :class:`~stepnc_graph.store.remote.RemoteStore`)."""
+
+    #: how the last graph removal was done ("delete", "rebuild", "difference", ...; None: none yet)
+    last_removal: str | None
+
+    @property
+    def capabilities(self) -> Capabilities: ...
+
+    @property
+    def location(self) -> str:
+        """Where the store is, for users: its absolute directory, its endpoint, or "memory"."""
+        ...
+
+    def maintenance(self) -> Maintenance | None:
+        """The storage state, or None when the back end manages its own storage (an endpoint)."""
+        ...
+
+    # -- writing --------------------------------------------------------------------------
+
+    def replace_graph(self, graph: str, chunks: Iterable[Chunk],
+                      before_commit: Callable[[Callable[[str], str]], None] | None = None,
+                      companions: Sequence[str] = ()) -> None:
+        """Atomically make ``graph`` hold exactly the N-Triples in ``chunks`` (and ``companions``
+        what :class:`Companion` chunks and ``before_commit`` write); an exception rolls back."""
+        ...
+
+    def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool: ...
+
+    def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None: ...
+
+    def add_turtle(self, graph: str, text: str) -> None: ...
+
+    def add_quads(self, quads: Iterable[ox.Quad]) -> int:
+        """Add quads, blank nodes as given (only where ``capabilities.blank_node_writes``)."""
+        ...
+
+    def update(self, sparql: str) -> None: ...
+
+    def compact(self, progress: Callable[[int, int], None] | None = None) -> None:
+        """Give disk space back (where ``capabilities.compactable``; a no-op in memory)."""
+        ...
+
+    # -- reading --------------------------------------------------------------------------
+
+    def all_graphs(self) -> list[str]:
+        """Every named graph but staging ones, sorted."""
+        ...
+
+    def has_graph(self, graph: str) -> bool: ...
+
+    def query(self, sparql: str, **kwargs: Any) -> Any: ...
+
+    def count(self, graph: str | None = None) -> int: ...
+
+    def quads(self, graph: str | None = None) -> Iterator[ox.Quad]: ...
+
+    def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]: ...
+
+    def local_copy(self, graphs: str | Sequence[str] | None = None) -> Any:
+        """An in-memory store holding ``graphs`` (one, several, every one), for work that reads
+        node by node; the caller closes it."""
+        ...
+
+    @property
+    def oxigraph(self) -> ox.Store:
+        """The embedded database (where ``capabilities.local_reads``; else StoreError)."""
+        ...
+
+    def close(self) -> None: ...
+
+    def __enter__(self) -> Any: ...
+
+    def __exit__(self, *exc: object) -> None: ...
+
+
+def members() -> list[str]:
+    """The names :class:`Store` declares (for the contract test: every back end has each)."""
+    declared = {n for n in vars(Store) if not n.startswith("_") or n in ("__enter__", "__exit__")}
+    return sorted(declared | set(Store.__annotations__))
+
+
+def is_store(value: object) -> TypeGuard[Store]:
+    """Whether ``value`` is a store (it declares :class:`Capabilities`), not, say, a list of files.
+    Asked of its class, so that no property of the store runs."""
+    return isinstance(getattr(type(value), "capabilities", None), Capabilities | property)
