@@ -84,10 +84,13 @@ class RuleStats:
     total: int
     translated: int
     untranslated: tuple[tuple[str, str], ...]  # ("entity.wr1", reason)
+    #: rules no instance can satisfy as written (schema defects): ("entity.wr1", what is done instead)
+    defects: tuple[tuple[str, str], ...] = ()
 
     def asdict(self) -> dict[str, Any]:
         return {"schema": self.schema, "total": self.total, "translated": self.translated,
-                "untranslated": [{"rule": r, "reason": why} for r, why in self.untranslated]}
+                "untranslated": [{"rule": r, "reason": why} for r, why in self.untranslated],
+                "schema_defects": [{"rule": r, "what": why} for r, why in self.defects]}
 
 
 def rule_stats(root: Path) -> list[RuleStats]:
@@ -101,5 +104,7 @@ def rule_stats(root: Path) -> list[RuleStats]:
         rules = [r for r in coverage if r.schema == name]
         if rules:
             out.append(RuleStats(name, len(rules), sum(r.translated for r in rules),
-                                 tuple((f"{r.owner}.{r.label}", r.reason or "") for r in rules if not r.translated)))
+                                 tuple((f"{r.owner}.{r.label}", r.reason or "") for r in rules if not r.translated),
+                                 tuple((f"{r.owner}.{r.label}", r.reason or "") for r in rules
+                                       if (r.reason or "").startswith("schema defect"))))
     return out

@@ -28,6 +28,8 @@ by :mod:`stepnc_graph.validation`.
 
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass
 from decimal import Decimal
 from typing import Any
@@ -75,7 +77,8 @@ class RuleCoverage:
     label: str
     text: str
     translated: bool
-    how: str  # "core", "sparql", "range" (defined type value range) or "" when not translated
+    how: str  # "core", "sparql", "range" (defined type value range), "intent" (a schema defect's
+    # evident intent, see express_sparql.never_satisfied) or "" when not translated
     reason: str | None = None
 
 
@@ -112,13 +115,16 @@ class ShapesGenerator:
                     if isinstance(decl, Entity):
                         t = translate_rule(self.model, self.n, decl, rule.expr)
                         self._translations[(name, rule.label)] = t
-                        how = "core" if t.core else "sparql"
+                        how = "core" if t.core else "intent" if t.defect else "sparql"
                     elif isinstance(decl, DefinedType):
                         self._facets.setdefault(name, []).extend(defined_type_facets(rule.expr))
                         how = "range"
                     else:
                         raise Untranslatable(f"a WHERE rule on a {type(decl).__name__}")
                     self._coverage.append(RuleCoverage(decl.schema, name, rule.label, text, True, how))
+                    if how == "intent":
+                        self._coverage[-1] = dataclasses.replace(
+                            self._coverage[-1], reason=f"schema defect: {t.defect}; its evident intent checked: {t.intent}")
                 except Untranslatable as exc:
                     self._translations[(name, rule.label)] = exc
                     self._coverage.append(RuleCoverage(decl.schema, name, rule.label, text, False, "", str(exc)))
@@ -469,10 +475,16 @@ class ShapesGenerator:
             self.annotate(g, s, e.name, f"{e.name} {rule.label.upper()}")
             g.add((s, SHAPES.rule, Literal(rule.label.upper())))
             g.add((s, SHAPES.expressText, Literal(text)))
-            if message:
+            if message and t.defect is None:
                 g.add((s, SH.message, Literal(f"{e.name} {rule.label.upper()}: {text}")))
+            elif message:
+                g.add((s, SH.message, Literal(f"{e.name} {rule.label.upper()} (schema defect, its intent checked: "
+                                              f"{t.intent}): {text}")))
 
         describe(shape)
+        if t.defect is not None:
+            g.add((shape, SHAPES.schemaDefect, Literal(t.defect)))
+            g.add((shape, SHAPES.intentChecked, Literal(t.intent or "")))
         if t.note:
             g.add((shape, RDFS.comment, Literal(f"Exact reading: {t.note}.")))
         if t.core is not None:

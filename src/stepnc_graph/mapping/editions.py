@@ -210,6 +210,19 @@ def edition_tables(edition: str) -> DerivedTables:
     return dataclasses.replace(tables, superclasses=supers, generic=generic)
 
 
+def counterpart_typing(graph: str, editions: set[str]) -> str | None:
+    """SPARQL Update that also types each instance of an edition's own class (of ``editions``) in
+    ``graph`` with the 2002 class it is equivalent to or a subclass of: for a throw-away graph the
+    2002 shapes check (they know the 2002 hierarchy only). None when there is nothing to type."""
+    pairs = sorted({(t.iri, t.shipped) for e in editions - {SHIPPED} for t in edition_terms(e)
+                    if t.slot is None and t.shipped is not None})
+    if not pairs:
+        return None
+    values = " ".join(f"(<{c}> <{s}>)" for c, s in pairs)
+    return (f"INSERT {{ GRAPH <{graph}> {{ ?x a ?super }} }} WHERE {{ GRAPH <{graph}> {{ "
+            f"VALUES (?c ?super) {{ {values} }} ?x a ?c }} }}")
+
+
 # -- which edition a file is written in --------------------------------------------------------
 
 

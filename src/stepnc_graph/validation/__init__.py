@@ -229,6 +229,7 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         loaded = load(store, programs, lenient=lenient, derived=False, positions=_reads_positions(checks)) \
             if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
+        _type_edition_classes(store, loaded)
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
         mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
         data = [load_rdf(store.oxigraph, p, _rdf_graph(p, {r.graph for r in loaded})) for p in rdf]
@@ -236,6 +237,19 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         graphs = sorted([(order.get(r.path, 0), r.graph) for r in loaded] + [(order[str(d.path)], d.graph) for d in data])
         return _validate_store(store, [g for _, g in graphs], shapes, checks, diagnostics, mapped,
                                {d.graph: d for d in data})
+
+
+def _type_edition_classes(store: Any, loaded: list[Any]) -> None:
+    """Programs read in another edition (or holding instances of one): each instance of an
+    edition's own class also typed with its 2002 counterpart in the throw-away graph, so the 2002
+    shapes check it as that (a 2001 CENTER_DRILL is a centerdrill where a tool body is needed)."""
+    from stepnc_graph.mapping.editions import counterpart_typing
+
+    for r in loaded:
+        editions = set(r.other_editions.values()) | ({r.edition.edition} if r.edition is not None else set())
+        update = counterpart_typing(r.graph, editions)
+        if update is not None:
+            store.update(update)
 
 
 def _rdf_graph(path: Path, taken: set[str]) -> str:
