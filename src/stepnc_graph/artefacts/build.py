@@ -61,6 +61,27 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
         out[f"src/stepnc_graph/{rel}"] = text
     out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
+    out.update(edition_files(catalog.directory, plans))
+    return out
+
+
+def edition_files(express_directory: Path, base: Plans) -> dict[str, str]:
+    """Per other edition found beside the shipped one: its compiled model and plans
+    (``ontology/editions/<edition>.compiled-model.json``, read by
+    :func:`stepnc_graph.mapping.editions.own_plans`) and its own terms as OWL
+    (``ontology/edition_<edition>.ttl``, in the vocabulary graph)."""
+    from stepnc_graph.mapping.editions import COMPILED, build_edition_plans, edition_turtle
+
+    out: dict[str, str] = {}
+    for edition in EDITIONS:
+        directory = express_directory.parent / "editions" / edition
+        if not (directory / "schemas.toml").is_file():
+            continue
+        catalog, model = load_catalog_model(directory)
+        own = Plans(model, base.n)
+        out["ontology/" + COMPILED.format(edition=edition)] = cache.dumps(catalog, model, own.dump(),
+                                                                         cache.express_digest(directory))
+        out[f"ontology/edition_{edition}.ttl"] = edition_turtle(edition, build_edition_plans(edition, base, own), base)
     return out
 
 

@@ -836,8 +836,10 @@ def _intent(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Tr
     c = _Compiler(model, naming, entity)
     tests = _disjuncts(expr)
     aggs = [_aggregate_typeof(c, t) for t in tests]
-    operands = {express_text(t.right.args[0].value) for t in tests if isinstance(t, ast.BinaryExpr)}
-    if any(a is None for a in aggs) or len(operands) != 1:
+    if any(a is None for a in aggs):
+        return None  # _aggregate_typeof: each test is 'S.E' IN TYPEOF(x)
+    operands = {express_text(t.right.args[0].value) for t in tests}
+    if len(operands) != 1:
         return None
     names = [str(t.left.value).split(".")[-1].lower() for t in tests]
     if any(n not in model.entities for n in names):

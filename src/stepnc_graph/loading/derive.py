@@ -55,6 +55,7 @@ are generic values that are blank nodes.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Iterator
@@ -64,6 +65,7 @@ from typing import TYPE_CHECKING
 
 import pyoxigraph as ox
 
+from stepnc_graph.mapping.editions import SHIPPED, check_edition, edition_terms
 from stepnc_graph.mapping.mapper import DerivedTables
 from stepnc_graph.mapping.ntriples import RDFS_LABEL
 from stepnc_graph.core.naming import (
@@ -231,6 +233,26 @@ def iso14649_rules() -> DeriveRules:
 
     catalog, model = iso14649()
     return compile_rules(model, catalog.naming)
+
+
+@lru_cache(maxsize=4)
+def edition_tables(edition: str) -> DerivedTables:
+    """The derived layer's tables (:class:`~stepnc_graph.mapping.mapper.DerivedTables`) for programs
+    of ``edition``: the shipped ones, with the edition's classes closed over their 2002 counterpart
+    and the edition's own properties given their generic ``attr:`` property."""
+    tables = iso14649_rules().tables()
+    if check_edition(edition) == SHIPPED:
+        return tables
+    supers = dict(tables.superclasses)
+    generic = dict(tables.generic)
+    for term in edition_terms(edition):
+        if term.plan is None:
+            continue
+        if term.slot is not None:
+            generic[term.iri] = generic_attribute_iri(term.slot.name)
+        elif term.shipped is not None and term.shipped in supers:
+            supers[term.iri] = (term.shipped, *supers[term.shipped])
+    return dataclasses.replace(tables, superclasses=supers, generic=generic)
 
 
 # -- reading the loaded graph --------------------------------------------------

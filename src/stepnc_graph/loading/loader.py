@@ -20,9 +20,10 @@ import pyoxigraph as ox
 
 from stepnc_graph import __version__
 from stepnc_graph.mapping import ntriples as T
-from stepnc_graph.mapping.editions import EditionChoice, decide_edition, edition_plans, edition_tables, other_fit
-from stepnc_graph.mapping.mapper import DerivedTables, EntityPlan, InstanceMapper
-from stepnc_graph.loading.derive import derive
+from stepnc_graph.mapping.editions import EditionChoice, decide_edition, edition_plans, other_fit
+from stepnc_graph.mapping.mapper import DerivedTables, InstanceMapper
+from stepnc_graph.mapping.plans import EntityPlan
+from stepnc_graph.loading.derive import derive, edition_tables
 from stepnc_graph.mapping.plans import (
     P21_DUPLICATE,
     P21_EDITION,

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
+from stepnc_graph.core.naming import Naming
 from stepnc_graph.mapping.plans import Encoding, EntityPlan, Plans, Slot, iso14649_plans
 
 if TYPE_CHECKING:
-    from stepnc_graph.mapping.mapper import DerivedTables
     from stepnc_graph.part21.reader import Header
 
 #: the edition the vocabulary, the shapes and the compiled model are built from
@@ -126,6 +126,50 @@ def _edition_plan(edition: str, own: EntityPlan, base: Plans) -> EntityPlan:
     return dataclasses.replace(own, cls=cls, slots=slots, own_slots=own_slots)
 
 
+def build_edition_plans(edition: str, base: Plans, own: Plans) -> Plans:
+    """The plans of ``edition`` from the shipped plans ``base`` and the plans of the edition's own
+    model ``own`` (its IRIs minted in the shared namespace): exactly the edition's entities, each
+    in the shared vocabulary (see the module doc)."""
+    plans = Plans.__new__(Plans)
+    plans.model = own.model
+    plans.n = base.n
+    plans._enc = {**own._enc, **base._enc}
+    plans.entities = {key: _edition_plan(edition, p, base) for key, p in own.entities.items()}
+    plans._index()
+    return plans
+
+
+#: where ``stepnc-graph ontology build`` writes an edition's compiled model and plans (beside its
+#: catalogue directory, whose digest covers every file in it)
+COMPILED = "editions/{edition}.compiled-model.json"
+
+
+def own_plans(edition: str, naming: Naming) -> Plans:
+    """The plans of the edition's own model: from its compiled model when that is fresh, else built
+    from its EXPRESS (a few seconds) with a :class:`~stepnc_graph.schema.cache.CompiledModelWarning`."""
+    import warnings
+
+    from stepnc_graph.core.resources import ontology_dir
+    from stepnc_graph.schema import cache
+    from stepnc_graph.schema.catalog import edition_directory, load_edition_model
+
+    directory = edition_directory(edition)
+    path = ontology_dir() / COMPILED.format(edition=edition)
+    try:
+        text = path.read_text(encoding="utf-8")
+        compiled = cache.loads(text, directory, cache.express_digest(directory))
+        if compiled.plans is not None:
+            return Plans.restore(compiled.model, naming, compiled.plans)
+        reason = "it holds no plans"
+    except OSError as exc:
+        reason = f"it cannot be read ({exc.strerror or exc})"
+    except cache.StaleCache as exc:
+        reason = str(exc)
+    warnings.warn(f"{path} is not used: {reason}. Building the {edition} model from its EXPRESS instead; "
+                  f"`stepnc-graph ontology build` refreshes the file.", cache.CompiledModelWarning, stacklevel=2)
+    return Plans(load_edition_model(edition)[1], naming)
+
+
 @lru_cache(maxsize=len(EDITIONS))
 def edition_plans(edition: str) -> Plans:
     """The plans that read and write programs of ``edition``: exactly its entities, in the shared
@@ -133,17 +177,7 @@ def edition_plans(edition: str) -> Plans:
     base = iso14649_plans()
     if check_edition(edition) == SHIPPED:
         return base
-    from stepnc_graph.schema.catalog import load_edition_model
-
-    _, model = load_edition_model(edition)
-    own = Plans(model, base.n)
-    plans = Plans.__new__(Plans)
-    plans.model = model
-    plans.n = base.n
-    plans._enc = {**own._enc, **base._enc}
-    plans.entities = {key: _edition_plan(edition, p, base) for key, p in own.entities.items()}
-    plans._index()
-    return plans
+    return build_edition_plans(edition, base, own_plans(edition, base.n))
 
 
 @dataclass(frozen=True)
@@ -158,11 +192,13 @@ class EditionTerm:
     slot: Slot | None = None
 
 
-def edition_terms(edition: str) -> list[EditionTerm]:
-    """The edition's own classes and properties (what ``ontology/editions/<edition>.ttl`` declares)."""
-    base = iso14649_plans()
-    plans = edition_plans(edition)
+def edition_terms(edition: str, plans: Plans | None = None, base: Plans | None = None) -> list[EditionTerm]:
+    """The edition's own classes and properties (what ``ontology/edition_<edition>.ttl`` declares),
+    from its ``plans`` against the shipped ``base`` (default: the loaded ones)."""
+    base = base or iso14649_plans()
+    plans = plans or edition_plans(edition)
     renamed = RENAMED.get(edition, {})
+    shipped = {s.prop for p in base.entities.values() for s in p.slots + p.own_slots}
     out: list[EditionTerm] = []
     props: dict[str, EditionTerm] = {}
     for plan in sorted(plans.entities.values(), key=lambda p: p.name):
@@ -172,42 +208,9 @@ def edition_terms(edition: str) -> list[EditionTerm]:
             out.append(EditionTerm(plan.cls, "subclass" if differs else "equivalent",
                                    target.cls if target else None, plan=plan))
         for slot in plan.own_slots:
-            if not _known_property(base, slot.prop):
+            if slot.prop not in shipped:
                 props.setdefault(slot.prop, EditionTerm(slot.prop, "own", None, plan=plan, slot=slot))
     return out + sorted(props.values(), key=lambda t: t.iri)
-
-
-@lru_cache(maxsize=1)
-def _shipped_properties() -> frozenset[str]:
-    base = iso14649_plans()
-    return frozenset(s.prop for p in base.entities.values() for s in p.slots + p.own_slots)
-
-
-def _known_property(base: Plans, prop: str) -> bool:
-    return prop in _shipped_properties()
-
-
-@lru_cache(maxsize=len(EDITIONS))
-def edition_tables(edition: str) -> DerivedTables:
-    """The derived layer's tables (:class:`~stepnc_graph.mapping.mapper.DerivedTables`) for programs
-    of ``edition``: the shipped ones, with the edition's classes closed over their 2002 counterpart
-    and the edition's own properties given their generic ``attr:`` property."""
-    from stepnc_graph.core.naming import generic_attribute_iri
-    from stepnc_graph.loading.derive import iso14649_rules
-
-    tables = iso14649_rules().tables()
-    if check_edition(edition) == SHIPPED:
-        return tables
-    supers = dict(tables.superclasses)
-    generic = dict(tables.generic)
-    for term in edition_terms(edition):
-        if term.plan is None:
-            continue
-        if term.slot is not None:
-            generic[term.iri] = generic_attribute_iri(term.slot.name)
-        elif term.shipped is not None and term.shipped in supers:
-            supers[term.iri] = (term.shipped, *supers[term.shipped])
-    return dataclasses.replace(tables, superclasses=supers, generic=generic)
 
 
 def counterpart_typing(graph: str, editions: set[str]) -> str | None:
@@ -221,6 +224,83 @@ def counterpart_typing(graph: str, editions: set[str]) -> str | None:
     values = " ".join(f"(<{c}> <{s}>)" for c, s in pairs)
     return (f"INSERT {{ GRAPH <{graph}> {{ ?x a ?super }} }} WHERE {{ GRAPH <{graph}> {{ "
             f"VALUES (?c ?super) {{ {values} }} ?x a ?c }} }}")
+
+
+def edition_ontology_iri(edition: str, naming: Naming) -> str:
+    return f"{naming.ontology_base}edition/{edition}"
+
+
+def edition_turtle(edition: str, plans: Plans, base: Plans) -> str:
+    """``ontology/edition_<edition>.ttl``: the edition's own classes (``owl:equivalentClass`` or
+    ``rdfs:subClassOf`` their 2002 counterpart) and properties (with their generic ``attr:``
+    property), so OWL tools and queries over the vocabulary graph see the bridge the derived layer
+    uses. Written as text in a fixed order (byte-stable, checked by ``ontology build --check``)."""
+    from stepnc_graph.core.naming import ATTRIBUTE_NS, P21_NS, generic_attribute_iri
+
+    ns = base.n.namespace
+    onto = edition_ontology_iri(edition, base.n)
+
+    def term(iri: str) -> str:
+        for prefix, space in (("stepnc", ns), ("attr", ATTRIBUTE_NS)):
+            if iri.startswith(space):
+                return f"{prefix}:{iri[len(space):]}"
+        return f"<{iri}>"
+
+    def text(value: str) -> str:
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+    lines = [f"PREFIX {p}: <{i}>" for p, i in (
+        ("attr", ATTRIBUTE_NS), ("owl", "http://www.w3.org/2002/07/owl#"), ("p21", P21_NS),
+        ("rdfs", "http://www.w3.org/2000/01/rdf-schema#"), ("stepnc", ns),
+        ("xsd", "http://www.w3.org/2001/XMLSchema#"))]
+    about = (f"The terms of {TITLES[edition]} that the 2002 vocabulary does not have, and how they relate to it "
+             "(see ontology/README.md, Editions).")
+    lines += ["", f"<{onto}>", "    a owl:Ontology ;", f"    rdfs:label {text('ISO 14649 edition ' + edition)} ;",
+              f"    rdfs:comment {text(about)} ;",
+              f"    owl:imports <{base.n.ontology_base}milling_tool_schema>, <{base.n.ontology_base}milling_schema>, "
+              f"<{base.n.ontology_base}machining_schema>, <{ATTRIBUTE_NS[:-1]}> ;", "."]
+    generics: dict[str, str] = {}
+    for t in edition_terms(edition, plans, base):
+        lines.append("")
+        if t.slot is None:
+            assert t.plan is not None
+            relation = "owl:equivalentClass" if t.relation == "equivalent" else "rdfs:subClassOf"
+            said = ("the same entity under its 2002 name" if t.relation == "equivalent" else
+                    "a 2002 entity whose attributes it shares except where the meaning differs, which keep "
+                    "this edition's terms")
+            comment = f"{t.plan.name} of {TITLES[edition]}: {said}."
+            lines += [term(t.iri), "    a owl:Class ;", f"    rdfs:label {text(t.plan.name)} ;",
+                      f"    rdfs:comment {text(comment)} ;",
+                      *([f"    {relation} {term(t.shipped)} ;"] if t.shipped else []),
+                      f"    rdfs:isDefinedBy <{onto}> ;", "."]
+            continue
+        slot = t.slot
+        literal = slot.encoding.kind not in ("entity", "select", "list") and slot.encoding.datatype is not None
+        kind = "owl:DatatypeProperty" if literal else "owl:ObjectProperty"
+        generic = generic_attribute_iri(slot.name)
+        generics.setdefault(generic, kind)
+        lines += [term(t.iri), f"    a {kind} ;", f"    rdfs:label {text(slot.name)} ;",
+                  f"    rdfs:comment {text(slot.entity + '.' + slot.name + ' of ' + TITLES[edition])} ;",
+                  f"    rdfs:domain {term(ns + slot.entity)} ;",
+                  *([f"    rdfs:range <{slot.encoding.datatype}> ;"] if literal else []),
+                  f"    rdfs:subPropertyOf {term(generic)} ;", f"    rdfs:isDefinedBy <{onto}> ;", "."]
+    known = _generic_kinds()
+    for generic, kind in sorted(generics.items()):
+        if generic not in known:
+            lines += ["", term(generic), f"    a {kind} ;", f"    rdfs:label {text(generic.rsplit('#', 1)[1])} ;",
+                      f"    rdfs:isDefinedBy <{onto}> ;", "."]
+    return "\n".join(lines) + "\n"
+
+
+def _generic_kinds() -> frozenset[str]:
+    """The generic ``attr:`` properties the shipped ``generic.ttl`` declares."""
+    from stepnc_graph.core.resources import ontology_dir
+
+    path = ontology_dir() / "generic.ttl"
+    names = re.findall(r"(?m)^attr:([A-Za-z0-9_.]+)$", path.read_text(encoding="utf-8")) if path.exists() else []
+    from stepnc_graph.core.naming import ATTRIBUTE_NS
+
+    return frozenset(ATTRIBUTE_NS + n for n in names)
 
 
 # -- which edition a file is written in --------------------------------------------------------
