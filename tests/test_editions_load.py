@@ -93,9 +93,19 @@ def test_library_queries_answer_on_a_2001_program_as_on_a_2002_one() -> None:
     assert all(u["program"] == r.graph for u in usage)
 
 
-def test_validate_applies_the_2001_edition() -> None:
-    report = sg.validate([PLATE])
-    assert report.results == []
+def test_validate_applies_the_2001_edition(tmp_path: Path) -> None:
+    """A 2001 CENTER_DRILL is a tool body, a TOOL_DIMENSION a tool's dimension, and a 2001
+    BORING_TOOL owes no retract_movement_forbidden (a 2002 attribute): on files and in a store."""
+    assert sg.validate([PLATE]).results == []
+    store = sg.open_store(tmp_path / "store")
+    sg.load(store, [PLATE, MIXED])
+    assert sg.validate(store).results == []
+    store.close()
+    wrong = tmp_path / "plate_wrong_body.stp"
+    wrong.write_text(PLATE.read_text().replace("#14=MILLING_CUTTING_TOOL('CENTRE DRILL 6',#50,",
+                                               "#14=MILLING_CUTTING_TOOL('CENTRE DRILL 6',#52,"))
+    found = [(r.p21_id, r.path, r.message) for r in sg.validate([wrong]).results]
+    assert (14, "its_tool_body", "must be a tool_body, found #52 TOOL_DIMENSION") in found
 
 
 # -- a file that mixes editions -------------------------------------------------------------------

@@ -51,7 +51,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
         out[f"ontology/{rel}"] = text
     digest = cache.express_digest(catalog.directory)
     out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
-    shapes = ShapesGenerator(model, catalog, naming).outputs()
+    editions_out, edition_classes = edition_files(catalog.directory, plans)
+    shapes = ShapesGenerator(model, catalog, naming, edition_classes).outputs()
     for rel, text in shapes.items():
         out[f"shapes/{rel}"] = text
     out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(shapes, catalog.directory.parent.parent / "shapes")
@@ -61,18 +62,20 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     for rel, text in PythonVocabularyGenerator(model, naming).outputs().items():
         out[f"src/stepnc_graph/{rel}"] = text
     out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
-    out.update(edition_files(catalog.directory, plans))
+    out.update(editions_out)
     return out
 
 
-def edition_files(express_directory: Path, base: Plans) -> dict[str, str]:
+def edition_files(express_directory: Path, base: Plans) -> tuple[dict[str, str], list[tuple[str, str]]]:
     """Per other edition found beside the shipped one: its compiled model and plans
     (``ontology/editions/<edition>.compiled-model.json``, read by
     :func:`stepnc_graph.mapping.editions.own_plans`) and its own terms as OWL
-    (``ontology/edition_<edition>.ttl``, in the vocabulary graph)."""
-    from stepnc_graph.mapping.editions import COMPILED, build_edition_plans, edition_turtle
+    (``ontology/edition_<edition>.ttl``, in the vocabulary graph); and the (edition class, 2002
+    class) pairs the shapes' class hierarchy adds."""
+    from stepnc_graph.mapping.editions import COMPILED, build_edition_plans, counterpart_classes, edition_turtle
 
     out: dict[str, str] = {}
+    pairs: list[tuple[str, str]] = []
     for edition in EDITIONS:
         directory = express_directory.parent / "editions" / edition
         if not (directory / "schemas.toml").is_file():
@@ -81,8 +84,10 @@ def edition_files(express_directory: Path, base: Plans) -> dict[str, str]:
         own = Plans(model, base.n)
         out["ontology/" + COMPILED.format(edition=edition)] = cache.dumps(catalog, model, own.dump(),
                                                                          cache.express_digest(directory))
-        out[f"ontology/edition_{edition}.ttl"] = edition_turtle(edition, build_edition_plans(edition, base, own), base)
-    return out
+        plans = build_edition_plans(edition, base, own)
+        out[f"ontology/edition_{edition}.ttl"] = edition_turtle(edition, plans, base)
+        pairs += counterpart_classes(edition, plans, base)
+    return out, pairs
 
 
 def edition_table(express_directory: Path, model: SchemaModel) -> str:

@@ -29,7 +29,6 @@ by :mod:`stepnc_graph.validation`.
 from __future__ import annotations
 
 import dataclasses
-
 from dataclasses import dataclass
 from decimal import Decimal
 from typing import Any
@@ -85,10 +84,13 @@ class RuleCoverage:
 class ShapesGenerator:
     """Builds ``shapes/core.ttl``, ``shapes/support.ttl`` and ``shapes/<schema>.ttl``."""
 
-    def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None) -> None:
+    def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None,
+                 edition_classes: list[tuple[str, str]] | None = None) -> None:
         self.model = model
         self.catalog = catalog
         self.n = naming or catalog.naming
+        #: (class of another edition, its 2002 counterpart) IRIs: subclass pairs the support graph adds
+        self.edition_classes = edition_classes or []
         self._coverage: list[RuleCoverage] = []
         self._translations: dict[tuple[str, str], Translation | Untranslatable] = {}
         self._facets: dict[str, list[tuple[str, Decimal | int]]] = {}
@@ -211,9 +213,12 @@ class ShapesGenerator:
         return head
 
     def support_graph(self) -> Graph:
-        """rdfs:subClassOf for supertypes and SELECT membership; the enumeration items' types."""
+        """rdfs:subClassOf for supertypes and SELECT membership; the enumeration items' types; the
+        classes of other editions under their 2002 counterparts (:attr:`edition_classes`)."""
         g = Graph()
         g.bind("stepnc", self.n.namespace)
+        for sub, sup in self.edition_classes:
+            g.add((URIRef(sub), RDFS.subClassOf, URIRef(sup)))
         for e in self.model.entities.values():
             for st in e.supertypes:
                 g.add((self.n.declaration(e.name), RDFS.subClassOf, self.n.declaration(st)))

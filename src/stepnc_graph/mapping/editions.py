@@ -213,17 +213,11 @@ def edition_terms(edition: str, plans: Plans | None = None, base: Plans | None =
     return out + sorted(props.values(), key=lambda t: t.iri)
 
 
-def counterpart_typing(graph: str, editions: set[str]) -> str | None:
-    """SPARQL Update that also types each instance of an edition's own class (of ``editions``) in
-    ``graph`` with the 2002 class it is equivalent to or a subclass of: for a throw-away graph the
-    2002 shapes check (they know the 2002 hierarchy only). None when there is nothing to type."""
-    pairs = sorted({(t.iri, t.shipped) for e in editions - {SHIPPED} for t in edition_terms(e)
-                    if t.slot is None and t.shipped is not None})
-    if not pairs:
-        return None
-    values = " ".join(f"(<{c}> <{s}>)" for c, s in pairs)
-    return (f"INSERT {{ GRAPH <{graph}> {{ ?x a ?super }} }} WHERE {{ GRAPH <{graph}> {{ "
-            f"VALUES (?c ?super) {{ {values} }} ?x a ?c }} }}")
+def counterpart_classes(edition: str, plans: Plans, base: Plans) -> list[tuple[str, str]]:
+    """(edition class, its 2002 counterpart) for each class of ``edition`` the 2002 vocabulary does
+    not have: the subclass pairs the shapes' class hierarchy adds (``shapes/support.ttl``)."""
+    return sorted({(t.iri, t.shipped) for t in edition_terms(edition, plans, base)
+                   if t.slot is None and t.shipped is not None})
 
 
 def edition_ontology_iri(edition: str, naming: Naming) -> str:
