@@ -191,3 +191,16 @@ def test_p21_edition_on_the_graph() -> None:
     found = {(str(x["s"].value), str(x["v"].value)) for x in store.query(
         f"SELECT ?s ?v WHERE {{ GRAPH <{r.graph}> {{ ?s <{P21_NS}edition> ?v }} }}")}
     assert found == {(r.graph, "fdis2001"), (r.graph + "/i51", "2002")}
+
+
+def test_plan_answers_on_a_2001_program() -> None:
+    from stepnc_graph.workplan.plan import build_plan
+
+    store = sg.open_store(memory=True)
+    sg.load(store, [PLATE])
+    plan = build_plan(store)
+    assert [s.order for s in plan.execution_order()] == [1, 2]
+    assert [(c.order, c.before.ref, c.after.ref) for c in plan.tool_changes()] == [(2, "#14", "#15")]
+    assert {k: [s.order for s in v] for k, v in plan.workingsteps_per_setup().items()} == {"SETUP 1": [1, 2]}
+    tool, uses = plan.critical_tool()  # type: ignore[misc]
+    assert (tool.label, tool.ref, uses) == ("CENTRE DRILL 6", "#14", 1)
