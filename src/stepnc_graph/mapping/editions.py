@@ -320,7 +320,10 @@ def _table() -> dict[str, Any]:
     from stepnc_graph.core.resources import express_dir
     from stepnc_graph.schema.editions import TABLE_FILE, read_table
 
-    return read_table((express_dir().parent / TABLE_FILE).read_text(encoding="utf-8"))
+    try:
+        return read_table((express_dir().parent / TABLE_FILE).read_text(encoding="utf-8"))
+    except OSError:  # a data directory without the table: the shipped edition is the only one known
+        return {"editions": {SHIPPED: {}}, "only_in": {}, "entities": {}}
 
 
 def other_fit(edition: str, name: str, count: int) -> str | None:
@@ -338,7 +341,7 @@ def _distinctive() -> tuple[dict[str, str], re.Pattern[str]]:
     lacks; and a pattern that finds instances of them in Part 21 text."""
     table = _table()
     only = {name.upper(): edition for edition, names in table["only_in"].items() for name in names}
-    alternation = "|".join(sorted(only, key=len, reverse=True))
+    alternation = "|".join(sorted(only, key=len, reverse=True)) or "(?!)"  # none: a pattern that never matches
     return only, re.compile(rf"(?:^|[;\s)])#\d+\s*=\s*({alternation})\s*\(", re.IGNORECASE | re.MULTILINE)
 
 
