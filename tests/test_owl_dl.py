@@ -57,7 +57,8 @@ def test_vocabulary_is_owl2_dl() -> None:
         pytest.skip(str(e))
     assert [(v.ontology, v.kind, v.text[:300]) for v in violations] == []
     checked = {iri for iri, _ in owl_dl.ontology_files()}
-    assert len(checked) == 21 and "https://w3id.org/stepnc-graph/attribute" in checked
+    assert len(checked) == 22 and "https://w3id.org/stepnc-graph/attribute" in checked
+    assert "https://w3id.org/stepnc-graph/iso14649/edition/fdis2001" in checked  # the 2001 edition's own terms
 
 
 def test_vocabulary_has_no_unsatisfiable_class(vocabulary: Graph) -> None:

@@ -49,7 +49,7 @@ def __getattr__(name: str) -> Any:
 
 def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
          progress: Progress | None = None, replace: bool = False, derived: bool = True,
-         positions: bool = True) -> list[LoadResult]:
+         positions: bool = True, edition: str | None = None) -> list[LoadResult]:
     """Load each file (a directory: every Part 21 file under it; ``-``: standard input)
     into its own named graph, replacing an earlier load of the same file.
 
@@ -61,9 +61,11 @@ def load(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, ba
     ``derived=False`` leaves out the derived query layer (:mod:`stepnc_graph.loading.derive`):
     for a throw-away store that only :func:`validate` reads; so is ``positions=False``
     (Part 21 files: no ``p21:id``/``p21:line`` triples, the lines in ``LoadResult.lines``).
+    ``edition`` reads every Part 21 file in that edition of ISO 14649 (default: each file's own,
+    :func:`stepnc_graph.mapping.editions.decide_edition`).
     """
     return load_paths(store, paths, lenient=lenient, base_iri=base_iri, progress=progress, replace=replace,
-                      derived=derived, positions=positions)
+                      derived=derived, positions=positions, edition=edition)
 
 
 def unload(store: Store, graph: str, compact: bool = False) -> bool:
@@ -112,6 +114,10 @@ class GraphInfo:
     raw_instances: int | None
     diagnostics: int | None
     loaded: str | None
+    #: the edition of ISO 14649 the file was read in, how that was chosen, and the evidence
+    edition: str | None = None
+    edition_chosen_by: str | None = None
+    edition_evidence: tuple[str, ...] = ()
 
     def asdict(self) -> dict[str, Any]:
         return asdict(self)
@@ -133,6 +139,12 @@ def info(store: Store) -> list[GraphInfo]:
             f"OPTIONAL {{ <{g}> prov:generatedAtTime ?t }} }} }} LIMIT 1"))
         values = {k: (t.value if t is not None else None) for k, t in
                   zip(("src", "n", "raw", "d", "t"), rows[0], strict=True)} if rows else {}
+        edition = {str(r["p"].value).rsplit("#", 1)[1]: str(r["v"].value) for r in store.query(
+            f"PREFIX p21: <{P21_NS}> SELECT ?p ?v WHERE {{ GRAPH <{g}> {{ <{g}> ?p ?v "
+            f"VALUES ?p {{ p21:edition p21:editionChosenBy }} }} }}")}
+        evidence = tuple(sorted(str(r["v"].value) for r in store.query(
+            f"PREFIX p21: <{P21_NS}> SELECT ?v WHERE {{ GRAPH <{g}> {{ <{g}> p21:editionEvidence ?v }} }}")))
         out.append(GraphInfo(g, values.get("src"), store.count(g), _int(values.get("n")), _int(values.get("raw")),
-                             _int(values.get("d")), values.get("t")))
+                             _int(values.get("d")), values.get("t"), edition.get("edition"),
+                             edition.get("editionChosenBy"), evidence))
     return out

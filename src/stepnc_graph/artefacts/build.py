@@ -35,7 +35,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     naming = catalog.naming
     plans = Plans(model, naming)
     queries = catalog.directory.parent.parent / "queries"  # the library's examples, where there is one
-    inputs = Inputs(model, catalog, naming, plans, queries)
+    editions_out, edition_classes = edition_files(catalog.directory, plans)
+    inputs = Inputs(model, catalog, naming, plans, queries, tuple(edition_classes))
     out: dict[str, str] = {}
     generated: dict[str, dict[str, str]] = {}
     for entry in GENERATORS:
@@ -46,7 +47,32 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
     out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(generated["shacl"], catalog.directory.parent.parent / "shapes")
     out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
+    out.update(editions_out)
     return out
+
+
+def edition_files(express_directory: Path, base: Plans) -> tuple[dict[str, str], list[tuple[str, str]]]:
+    """Per other edition found beside the shipped one: its compiled model and plans
+    (``ontology/editions/<edition>.compiled-model.json``, read by
+    :func:`stepnc_graph.mapping.editions.own_plans`) and its own terms as OWL
+    (``ontology/edition_<edition>.ttl``, in the vocabulary graph); and the (edition class, 2002
+    class) pairs the shapes' class hierarchy adds."""
+    from stepnc_graph.mapping.editions import COMPILED, build_edition_plans, counterpart_classes, edition_turtle
+
+    out: dict[str, str] = {}
+    pairs: list[tuple[str, str]] = []
+    for edition in EDITIONS:
+        directory = express_directory.parent / "editions" / edition
+        if not (directory / "schemas.toml").is_file():
+            continue
+        catalog, model = load_catalog_model(directory)
+        own = Plans(model, base.n)
+        out["ontology/" + COMPILED.format(edition=edition)] = cache.dumps(catalog, model, own.dump(),
+                                                                         cache.express_digest(directory))
+        plans = build_edition_plans(edition, base, own)
+        out[f"ontology/edition_{edition}.ttl"] = edition_turtle(edition, plans, base)
+        pairs += counterpart_classes(edition, plans, base)
+    return out, pairs
 
 
 def edition_table(express_directory: Path, model: SchemaModel) -> str:

@@ -76,6 +76,10 @@ def ontology_stats(root: Path) -> list[SchemaStats]:
     return out
 
 
+#: how the shapes generator's coverage begins the reason of a rule no instance can satisfy
+DEFECT = "schema defect: "
+
+
 @dataclass(frozen=True)
 class RuleStats:
     """WHERE rules of one schema: how many became SHACL, and why the others did not."""
@@ -84,10 +88,13 @@ class RuleStats:
     total: int
     translated: int
     untranslated: tuple[tuple[str, str], ...]  # ("entity.wr1", reason)
+    #: rules no instance can satisfy as written (schema defects): ("entity.wr1", what is done instead)
+    defects: tuple[tuple[str, str], ...] = ()
 
     def asdict(self) -> dict[str, Any]:
         return {"schema": self.schema, "total": self.total, "translated": self.translated,
-                "untranslated": [{"rule": r, "reason": why} for r, why in self.untranslated]}
+                "untranslated": [{"rule": r, "reason": why} for r, why in self.untranslated],
+                "schema_defects": [{"rule": r, "what": why} for r, why in self.defects]}
 
 
 def rule_stats(root: Path) -> list[RuleStats]:
@@ -101,5 +108,7 @@ def rule_stats(root: Path) -> list[RuleStats]:
         rules = [r for r in coverage if r.schema == name]
         if rules:
             out.append(RuleStats(name, len(rules), sum(r.translated for r in rules),
-                                 tuple((f"{r.owner}.{r.label}", r.reason or "") for r in rules if not r.translated)))
+                                 tuple((f"{r.owner}.{r.label}", r.reason or "") for r in rules if not r.translated),
+                                 tuple((f"{r.owner}.{r.label}", (r.reason or "").removeprefix(DEFECT))
+                                       for r in rules if (r.reason or "").startswith(DEFECT))))
     return out

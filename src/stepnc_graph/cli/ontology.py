@@ -105,6 +105,9 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
         for rs in rules:
             for rule, why in rs.untranslated:
                 out.print(f"  not translated: {escape(rs.schema)} {escape(rule)}: {escape(why)}")
+        for rs in rules:
+            for rule, why in rs.defects:
+                out.print(f"  schema defect: {escape(rs.schema)} {escape(rule)}: {escape(why)}")
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
 
 

@@ -51,6 +51,10 @@ _COLOURS = {"error": "red", "warning": "yellow"}
 @with_store
 @with_endpoint
 @wait_option
+@click.option("--edition", type=click.Choice(["2002", "fdis2001"]), default=None,
+              help="Read the files in this edition of ISO 14649 (2002: the shipped schemas; fdis2001: ISO/FDIS "
+                   "14649-10/-11 of 2001) whatever they show; by default each file's FILE_SCHEMA, entity names "
+                   "and date decide, and load reports the choice and its evidence.")
 @click.option("--lenient", is_flag=True,
               help="Recover from syntax errors instance by instance and report them, instead of stopping.")
 @click.option("--base-iri", default=None,
@@ -62,7 +66,7 @@ _COLOURS = {"error": "red", "warning": "yellow"}
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, remote: RemoteOptions, wait: bool,
-             lenient: bool, base_iri: str | None, replace: bool, fmt: str) -> None:
+             lenient: bool, base_iri: str | None, replace: bool, fmt: str, edition: str | None) -> None:
     """Load Part 21 programs into the store, one named graph per file.
 
     INPUTS are files, directories (every .stp/.step/.p21 file under them,
@@ -83,12 +87,12 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
         refuse_graph_name_clashes(store, [s.graph for s in sources])
         if not replace:
             refuse_replacing_other_files(store, sources)
-        results, failures = _load_all(store, sources, lenient, fmt)
+        results, failures = _load_all(store, sources, lenient, fmt, edition)
     _report_loads(results, failures, fmt)
 
 
 def _load_all(store: Store, sources: list[Source], lenient: bool,
-              fmt: str) -> tuple[list[LoadResult], list[BaseException]]:
+              fmt: str, edition: str | None = None) -> tuple[list[LoadResult], list[BaseException]]:
     """Load each source in turn; a file that fails is reported and the others go on."""
     from stepnc_graph.cli.common import user_errors
     from stepnc_graph.loading.loader import load_source
@@ -106,7 +110,7 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
                     bar.update(task, completed=base + position * size // max(total, 1), description=label)
 
             try:
-                results.append(load_source(store, source, lenient=lenient, progress=advance))
+                results.append(load_source(store, source, lenient=lenient, progress=advance, edition=edition))
             except user_errors() as exc:
                 failures.append(exc)
                 if fmt == "text":
@@ -160,6 +164,9 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
             raw = f" ({r.raw} kept raw{f', {r.unreadable} unreadable' if r.unreadable else ''})"
             out.print(f"loaded {escape(r.path)} -> {escape(r.graph)}\n  {r.instances} instances{raw}, "
                       f"{r.triples} triples, {len(r.diagnostics)} diagnostics ({errors} errors) in {r.seconds:.2f} s")
+            if r.edition is not None:
+                out.print(f"  edition {r.edition.edition} (chosen by {r.edition.chosen_by}: "
+                          f"{escape('; '.join(r.edition.evidence) or 'no evidence')})")
             for d in r.diagnostics:
                 ident = f" #{d.p21_id}" if d.p21_id is not None else ""
                 out.print(f"  [{_COLOURS.get(d.severity, 'blue')}]{d.severity}[/] {d.line}:{d.column}{ident} "
@@ -349,3 +356,6 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
         out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
                   f"({r.raw_instances} raw), {r.triples} triples, {r.diagnostics} diagnostics; loaded {r.loaded}")
+        if r.edition is not None:
+            out.print(f"  edition {escape(r.edition)} (chosen by {escape(str(r.edition_chosen_by))}: "
+                      f"{escape('; '.join(r.edition_evidence) or 'no evidence')})")

@@ -41,10 +41,13 @@ from stepnc_graph.cli.common import (
 @click.option("--allow-service", is_flag=True,
               help="Let SERVICE clauses in the shapes' SPARQL send requests to the servers they name (refused "
                    "otherwise). Prints a warning.")
+@click.option("--edition", type=click.Choice(["2002", "fdis2001"]), default=None,
+              help="Read FILES in this edition of ISO 14649 whatever they show (default: each file's own, as "
+                   "load decides it); the edition's rules apply.")
 @reports_errors
 def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: RemoteOptions, graphs: tuple[str, ...],
                  fmt: str, severity: str, extra: tuple[Path, ...], strict: bool, no_iso: bool,
-                 allow_service: bool) -> None:
+                 allow_service: bool, edition: str | None) -> None:
     """Check FILES (loaded into a throw-away store) or a store's graphs.
 
     FILES are Part 21 programs (.stp, .step, .p21), JSON-LD program graphs
@@ -67,6 +70,8 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         raise UsageProblem("give FILES, or --store DIR / --endpoint URL; not both and not neither")
     if graphs and not in_store:
         raise UsageProblem("--graph needs --store or --endpoint")
+    if edition and in_store:
+        raise UsageProblem("--edition reads FILES; a store's graphs keep the edition they were loaded in")
     for g in graphs:
         check_iri(g, "--graph")
     if allow_service:
@@ -80,7 +85,7 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
                               iso_shapes=not no_iso, allow_service=allow_service)
     else:
         report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
-                          iso_shapes=not no_iso, allow_service=allow_service)
+                          iso_shapes=not no_iso, allow_service=allow_service, edition=edition)
     text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
     write_out(text, uchar=fmt != "text")
     sys.exit(EXIT_OK if report.passes else EXIT_NONCONFORMING)

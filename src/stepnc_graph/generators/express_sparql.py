@@ -24,6 +24,8 @@ Rust engines, stepnc-graph's own -- runs the same text.
 
 from __future__ import annotations
 
+import dataclasses
+
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -131,6 +133,10 @@ class Translation:
     core: CoreCheck | None = None
     sparql: str | None = None
     note: str | None = None  # what an exact reading needed (documented in the shape)
+    #: why no instance can satisfy the rule as written (a defect of the schema), when none can
+    defect: str | None = None
+    #: what is checked instead of such a rule: its evident intent, in words
+    intent: str | None = None
 
 
 # -- defined types: SELF compared with literals -> value ranges ------------------------------
@@ -752,8 +758,116 @@ def _core(model: SchemaModel, entity: Entity, expr: Any) -> CoreCheck | None:
     return None
 
 
+# -- rules no instance can satisfy -------------------------------------------------------------
+
+_T, _F, _U = "T", "F", "U"
+_NOT = {_T: _F, _F: _T, _U: _U}
+
+
+def _and(a: str, b: str) -> str:
+    return _F if _F in (a, b) else _U if _U in (a, b) else _T
+
+
+def _or(a: str, b: str) -> str:
+    return _T if _T in (a, b) else _U if _U in (a, b) else _F
+
+
+def _xor(a: str, b: str) -> str:
+    return _U if _U in (a, b) else _T if a != b else _F
+
+
+def _aggregate_typeof(c: "_Compiler", e: Any) -> "_Agg | None":
+    """The aggregate ``x`` of ``'S.E' IN TYPEOF(x)``, when ``e`` is such a test on an aggregate."""
+    if not (isinstance(e, ast.BinaryExpr) and e.op is ast.BinaryOp.IN and isinstance(e.left, ast.StringLiteral)
+            and isinstance(e.right, ast.Call) and c.callee(e.right) == "typeof"):
+        return None
+    try:
+        operand = c.value(e.right.args[0].value)
+    except Untranslatable:
+        return None
+    return operand if isinstance(operand, _Agg) else None
+
+
+def _possible(c: "_Compiler", e: Any) -> frozenset[str]:
+    """The truth values (ISO 10303-11 three-valued logic) ``e`` can take over all instances, as far
+    as its form shows: ``'S.E' IN TYPEOF(aggregate)`` is FALSE (TYPEOF of an aggregate names no
+    entity), UNKNOWN too when the aggregate may be unset; every other test may be anything."""
+    if isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NOT:
+        return frozenset(_NOT[v] for v in _possible(c, e.operand))
+    if isinstance(e, ast.BinaryExpr) and e.op in (ast.BinaryOp.AND, ast.BinaryOp.OR, ast.BinaryOp.XOR):
+        combine = {ast.BinaryOp.AND: _and, ast.BinaryOp.OR: _or, ast.BinaryOp.XOR: _xor}[e.op]
+        left, right = _possible(c, e.left), _possible(c, e.right)
+        return frozenset(combine(a, b) for a in left for b in right)
+    agg = _aggregate_typeof(c, e)
+    if agg is not None:
+        always = agg.present == "true" or _mandatory(c, e.right.args[0].value)
+        return frozenset({_F}) if always else frozenset({_F, _U})
+    return frozenset({_T, _F, _U})
+
+
+def _mandatory(c: "_Compiler", e: Any) -> bool:
+    """Whether ``e`` names a mandatory attribute of the rule's entity: set in every instance that is
+    otherwise valid (a missing one is reported by its own shape, sh:minCount)."""
+    if not isinstance(e, ast.NameRef):
+        return False
+    a = c.model.attribute(c.entity.name, str(e.identifier).lower())
+    return a is not None and a.kind == "explicit" and not a.optional
+
+
+def never_satisfied(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> str | None:
+    """Why no instance of ``entity`` can satisfy the rule ``expr`` (it is FALSE whatever the data),
+    or None when some instance may: a defect of the schema, not of any program."""
+    c = _Compiler(model, naming, entity)
+    if _possible(c, expr) != frozenset({_F}):
+        return None
+    return ("as written it is FALSE for every instance: 'S.E' IN TYPEOF(x) of an aggregate x is FALSE "
+            "(TYPEOF of an aggregate names no entity), and the rule admits nothing else")
+
+
+def _disjuncts(e: Any) -> list[Any]:
+    if isinstance(e, ast.BinaryExpr) and e.op is ast.BinaryOp.OR:
+        return _disjuncts(e.left) + _disjuncts(e.right)
+    return [e]
+
+
+def _intent(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Translation | None:
+    """The evident intent of a rule that ORs ``'S.E' IN TYPEOF(x)`` tests on one aggregate ``x``:
+    each member of ``x`` is one of those entities (or a subtype). None for any other form."""
+    c = _Compiler(model, naming, entity)
+    tests = _disjuncts(expr)
+    aggs = [_aggregate_typeof(c, t) for t in tests]
+    if any(a is None for a in aggs):
+        return None  # _aggregate_typeof: each test is 'S.E' IN TYPEOF(x)
+    operands = {express_text(t.right.args[0].value) for t in tests}
+    if len(operands) != 1:
+        return None
+    names = [str(t.left.value).split(".")[-1].lower() for t in tests]
+    if any(n not in model.entities for n in names):
+        return None
+    agg = aggs[0]
+    assert agg is not None
+    member, cell, t = c.fresh("m"), c.fresh("c"), c.fresh("t")
+    classes = ", ".join(f"<{naming.declaration(n)}>" for n in dict.fromkeys(
+        x for name in names for x in (name, *model.all_subtypes(name))))
+    body = " ".join([agg.members(c, member, cell), *c.scope.optionals,
+                     f"FILTER NOT EXISTS {{ {member} a {t} . FILTER({t} IN ({classes})) }}"])
+    words = f"each member of {operands.pop()} is a {', '.join(names[:-1])} or {names[-1]}" if len(names) > 1 \
+        else f"each member of {operands.pop()} is a {names[0]}"
+    return Translation(sparql=f"SELECT DISTINCT $this WHERE {{ {body} }}", intent=words)
+
+
 def translate_rule(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Translation:
-    """The SHACL rendering of one entity WHERE rule; raises :class:`Untranslatable`."""
+    """The SHACL rendering of one entity WHERE rule; raises :class:`Untranslatable`.
+
+    A rule no instance can satisfy (:func:`never_satisfied`) is a defect of the schema: its
+    evident intent is checked instead where its form shows one (:func:`_intent`), and it is not
+    checked otherwise -- a correct program is never non-conforming for the schema's mistake."""
+    defect = never_satisfied(model, naming, entity, expr)
+    if defect is not None:
+        intent = _intent(model, naming, entity, expr)
+        if intent is None:
+            raise Untranslatable(f"schema defect: {defect}; no evident intent to check instead")
+        return dataclasses.replace(intent, defect=defect)
     core = _core(model, entity, expr)
     if core is not None:
         return Translation(core=core)

@@ -38,6 +38,8 @@ class Inputs:
     plans: Plans
     #: the query library, whose examples the HTML reference shows (None: none)
     queries: Path | None
+    #: (edition class, 2002 class) pairs the shapes' class hierarchy adds (other editions' classes)
+    edition_classes: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -58,7 +60,7 @@ GENERATORS: tuple[GeneratorEntry, ...] = (
                    "the p21: terms of the lossless mapping"),
     GeneratorEntry("context", "ontology", lambda i: JsonLdContextGenerator(i.plans, i.naming),
                    "the JSON-LD context"),
-    GeneratorEntry("shacl", "shapes", lambda i: ShapesGenerator(i.model, i.catalog, i.naming),
+    GeneratorEntry("shacl", "shapes", lambda i: ShapesGenerator(i.model, i.catalog, i.naming, list(i.edition_classes)),
                    "the SHACL shapes of the schemas' constraints"),
     GeneratorEntry("html", "docs", lambda i: HtmlReferenceGenerator(i.model, i.catalog, i.naming, i.queries),
                    "the HTML reference of the vocabulary"),

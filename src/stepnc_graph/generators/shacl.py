@@ -28,6 +28,7 @@ by :mod:`stepnc_graph.validation`.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from decimal import Decimal
 from typing import Any
@@ -75,7 +76,8 @@ class RuleCoverage:
     label: str
     text: str
     translated: bool
-    how: str  # "core", "sparql", "range" (defined type value range) or "" when not translated
+    how: str  # "core", "sparql", "range" (defined type value range), "intent" (a schema defect's
+    # evident intent, see express_sparql.never_satisfied) or "" when not translated
     reason: str | None = None
 
 
@@ -85,10 +87,13 @@ class ShapesGenerator:
     #: the namespace of the shapes it names (also for :mod:`.shacl_supertypes`)
     shapes = SHAPES
 
-    def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None) -> None:
+    def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None,
+                 edition_classes: list[tuple[str, str]] | None = None) -> None:
         self.model = model
         self.catalog = catalog
         self.n = naming or catalog.naming
+        #: (class of another edition, its 2002 counterpart) IRIs: subclass pairs the support graph adds
+        self.edition_classes = edition_classes or []
         self._coverage: list[RuleCoverage] = []
         self._translations: dict[tuple[str, str], Translation | Untranslatable] = {}
         self._facets: dict[str, list[tuple[str, Decimal | int]]] = {}
@@ -115,13 +120,16 @@ class ShapesGenerator:
                     if isinstance(decl, Entity):
                         t = translate_rule(self.model, self.n, decl, rule.expr)
                         self._translations[(name, rule.label)] = t
-                        how = "core" if t.core else "sparql"
+                        how = "core" if t.core else "intent" if t.defect else "sparql"
                     elif isinstance(decl, DefinedType):
                         self._facets.setdefault(name, []).extend(defined_type_facets(rule.expr))
                         how = "range"
                     else:
                         raise Untranslatable(f"a WHERE rule on a {type(decl).__name__}")
                     self._coverage.append(RuleCoverage(decl.schema, name, rule.label, text, True, how))
+                    if how == "intent":
+                        self._coverage[-1] = dataclasses.replace(
+                            self._coverage[-1], reason=f"schema defect: {t.defect}; its evident intent checked: {t.intent}")
                 except Untranslatable as exc:
                     self._translations[(name, rule.label)] = exc
                     self._coverage.append(RuleCoverage(decl.schema, name, rule.label, text, False, "", str(exc)))
@@ -208,9 +216,12 @@ class ShapesGenerator:
         return head
 
     def support_graph(self) -> Graph:
-        """rdfs:subClassOf for supertypes and SELECT membership; the enumeration items' types."""
+        """rdfs:subClassOf for supertypes and SELECT membership; the enumeration items' types; the
+        classes of other editions under their 2002 counterparts (:attr:`edition_classes`)."""
         g = Graph()
         g.bind("stepnc", self.n.namespace)
+        for sub, sup in self.edition_classes:
+            g.add((URIRef(sub), RDFS.subClassOf, URIRef(sup)))
         for e in self.model.entities.values():
             for st in e.supertypes:
                 g.add((self.n.declaration(e.name), RDFS.subClassOf, self.n.declaration(st)))
@@ -409,10 +420,16 @@ class ShapesGenerator:
             self.annotate(g, s, e.name, f"{e.name} {rule.label.upper()}")
             g.add((s, SHAPES.rule, Literal(rule.label.upper())))
             g.add((s, SHAPES.expressText, Literal(text)))
-            if message:
+            if message and t.defect is None:
                 g.add((s, SH.message, Literal(f"{e.name} {rule.label.upper()}: {text}")))
+            elif message:
+                g.add((s, SH.message, Literal(f"{e.name} {rule.label.upper()} (schema defect, its intent checked: "
+                                              f"{t.intent}): {text}")))
 
         describe(shape)
+        if t.defect is not None:
+            g.add((shape, SHAPES.schemaDefect, Literal(t.defect)))
+            g.add((shape, SHAPES.intentChecked, Literal(t.intent or "")))
         if t.note:
             g.add((shape, RDFS.comment, Literal(f"Exact reading: {t.note}.")))
         if t.core is not None:

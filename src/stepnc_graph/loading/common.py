@@ -9,12 +9,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
 from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.part21.diagnostics import Diagnostic
+
+if TYPE_CHECKING:
+    from stepnc_graph.mapping.editions import EditionChoice
 
 DCT = "http://purl.org/dc/terms/"
 OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
@@ -78,10 +81,18 @@ class LoadResult:
     #: each instance's line by #id, for a load that wrote no ``p21:id``/``p21:line``
     #: triples (``positions=False``); None otherwise
     lines: dict[int, int] | None = field(default=None, repr=False)
+    #: the edition of ISO 14649 the file was read in, how it was chosen and why
+    #: (:func:`stepnc_graph.mapping.editions.decide_edition`); None for a JSON-LD load
+    edition: EditionChoice | None = None
+    #: #id -> edition of each instance read in another edition than the file's
+    other_editions: dict[int, str] = field(default_factory=dict)
 
     def asdict(self) -> dict[str, Any]:
         return {
-            "path": self.path, "graph": self.graph, "instances": self.instances, "raw_instances": self.raw,
+            "path": self.path, "graph": self.graph,
+            **({"edition": {**self.edition.asdict(), "instances_in_other_editions": {
+                f"#{i}": e for i, e in sorted(self.other_editions.items())}}} if self.edition else {}),
+            "instances": self.instances, "raw_instances": self.raw,
             "unreadable_instances": self.unreadable, "unreadable_texts": self.unreadable_texts,
             "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),
             "diagnostics": [{k: v for k, v in d.asdict().items() if k != "file"} for d in self.diagnostics],

@@ -55,6 +55,7 @@ are generic values that are blank nodes.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Iterator
@@ -64,6 +65,7 @@ from typing import TYPE_CHECKING
 
 import pyoxigraph as ox
 
+from stepnc_graph.mapping.editions import SHIPPED, check_edition, edition_terms
 from stepnc_graph.mapping.mapper import DerivedTables
 from stepnc_graph.mapping.ntriples import RDFS_LABEL
 from stepnc_graph.core.naming import (
@@ -194,19 +196,8 @@ def compile_rules(model: SchemaModel, naming: Naming) -> DeriveRules:
                 lists.append(prop)
             if a.name == "its_id":
                 labels.append(prop)
-    pairs = " ".join(f"(<{p}> <{g}>)" for p, g in sorted(generic.items()))
-    supers = " ".join(f"(<{naming.declaration_iri(c)}> {_iri(naming, s)})"
-                      for c, ss in sorted(closure.items()) for s in ss)
-    # Blank nodes (list heads, typed values) cannot travel as N-Triples text:
-    # Oxigraph gives each parsed document fresh blank nodes. So values that are
-    # blank nodes are selected apart (``blank_values``) and written as quads.
-    construct = (
-        f"CONSTRUCT {{ ?s ?q ?o }} WHERE {{\n"
-        f"  {{ VALUES (?p ?q) {{ {pairs} }} ?s ?p ?o FILTER(!isBlank(?o)) }}\n"
-        f"  UNION {{ VALUES (?c ?o) {{ {supers} }} ?s a ?c BIND({RDF_TYPE} AS ?q) }}\n"
-        f"  UNION {{ VALUES ?p {{ {' '.join(f'<{p}>' for p in sorted(labels))} }} ?s ?p ?o "
-        f"FILTER(STRLEN(?o) > 0) BIND({RDFS_LABEL} AS ?q) }}\n}}")
-    blank_values = f"SELECT ?s ?q ?o WHERE {{ VALUES (?p ?q) {{ {pairs} }} ?s ?p ?o FILTER(isBlank(?o)) }}"
+    superclasses = {naming.declaration_iri(c): tuple(_iri(naming, s)[1:-1] for s in ss) for c, ss in closure.items()}
+    construct, blank_values = _layer_queries(generic, superclasses, labels)
     executable = set(model.all_subtypes("executable"))
     return DeriveRules(
         construct=construct,
@@ -217,11 +208,52 @@ def compile_rules(model: SchemaModel, naming: Naming) -> DeriveRules:
         operation_properties=tuple(sorted(p for p, g in generic.items() if g.endswith("#its_operation"))),
         tool_properties=tuple(sorted(p for p, g in generic.items() if g.endswith("#its_tool"))),
         executables=tuple(sorted(n for n in executable if not model.entity(n).abstract)),
-        superclasses={naming.declaration_iri(c): tuple(_iri(naming, s)[1:-1] for s in ss)
-                      for c, ss in closure.items()},
+        superclasses=superclasses,
         generic=generic,
         labels=frozenset(labels),
     )
+
+
+def _layer_queries(generic: dict[str, str], superclasses: dict[str, tuple[str, ...]],
+                   labels: Iterable[str]) -> tuple[str, str]:
+    """The CONSTRUCT of closure, generic values and labels, and the SELECT of the generic values
+    that are blank nodes (see :class:`DeriveRules`), for these tables (IRIs)."""
+    pairs = " ".join(f"(<{p}> <{g}>)" for p, g in sorted(generic.items()))
+    supers = " ".join(f"(<{c}> <{s}>)" for c, ss in sorted(superclasses.items()) for s in ss)
+    # Blank nodes (list heads, typed values) cannot travel as N-Triples text:
+    # Oxigraph gives each parsed document fresh blank nodes. So values that are
+    # blank nodes are selected apart (``blank_values``) and written as quads.
+    construct = (
+        f"CONSTRUCT {{ ?s ?q ?o }} WHERE {{\n"
+        f"  {{ VALUES (?p ?q) {{ {pairs} }} ?s ?p ?o FILTER(!isBlank(?o)) }}\n"
+        f"  UNION {{ VALUES (?c ?o) {{ {supers} }} ?s a ?c BIND({RDF_TYPE} AS ?q) }}\n"
+        f"  UNION {{ VALUES ?p {{ {' '.join(f'<{p}>' for p in sorted(labels))} }} ?s ?p ?o "
+        f"FILTER(STRLEN(?o) > 0) BIND({RDFS_LABEL} AS ?q) }}\n}}")
+    blank_values = f"SELECT ?s ?q ?o WHERE {{ VALUES (?p ?q) {{ {pairs} }} ?s ?p ?o FILTER(isBlank(?o)) }}"
+    return construct, blank_values
+
+
+@lru_cache(maxsize=4)
+def edition_rules(editions: frozenset[str]) -> DeriveRules:
+    """The rules for a graph holding instances of ``editions``: the shipped rules, with the
+    closure and generic properties of each edition's own terms (:func:`edition_tables`)."""
+    rules = iso14649_rules()
+    supers, generic = dict(rules.superclasses), dict(rules.generic)
+    for edition in sorted(editions - {SHIPPED}):
+        tables = edition_tables(edition)
+        supers.update(tables.superclasses)
+        generic.update(tables.generic)
+    if supers == rules.superclasses and generic == rules.generic:
+        return rules
+    construct, blank_values = _layer_queries(generic, supers, rules.labels)
+    return dataclasses.replace(rules, construct=construct, blank_values=blank_values, superclasses=supers,
+                               generic=generic)
+
+
+def graph_editions(store: Store, graph: str) -> frozenset[str]:
+    """The editions a loaded graph's instances were read in (``p21:edition`` on it and on them)."""
+    rows = store.query(f"SELECT DISTINCT ?e WHERE {{ GRAPH <{graph}> {{ ?s <{P21_NS}edition> ?e }} }}")
+    return frozenset(str(r[0].value) for r in rows)
 
 
 @lru_cache(maxsize=1)
@@ -231,6 +263,26 @@ def iso14649_rules() -> DeriveRules:
 
     catalog, model = iso14649()
     return compile_rules(model, catalog.naming)
+
+
+@lru_cache(maxsize=4)
+def edition_tables(edition: str) -> DerivedTables:
+    """The derived layer's tables (:class:`~stepnc_graph.mapping.mapper.DerivedTables`) for programs
+    of ``edition``: the shipped ones, with the edition's classes closed over their 2002 counterpart
+    and the edition's own properties given their generic ``attr:`` property."""
+    tables = iso14649_rules().tables()
+    if check_edition(edition) == SHIPPED:
+        return tables
+    supers = dict(tables.superclasses)
+    generic = dict(tables.generic)
+    for term in edition_terms(edition):
+        if term.plan is None:
+            continue
+        if term.slot is not None:
+            generic[term.iri] = generic_attribute_iri(term.slot.name)
+        elif term.shipped is not None and term.shipped in supers:
+            supers[term.iri] = (term.shipped, *supers[term.shipped])
+    return dataclasses.replace(tables, superclasses=supers, generic=generic)
 
 
 # -- reading the loaded graph --------------------------------------------------
@@ -483,7 +535,7 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     when it wrote none (a JSON-LD load), and then a CONSTRUCT over the graph
     finds them.
     """
-    rules = rules or iso14649_rules()
+    rules = rules or edition_rules(graph_editions(store, target(graph)))
     reader = _Reader(store, target(graph))
     layer = derived_graph_iri(graph)
     lists = Lists.read(reader, rules.list_properties)

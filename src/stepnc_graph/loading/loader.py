@@ -17,16 +17,18 @@ import pyoxigraph as ox
 
 from stepnc_graph.core.version import __version__
 from stepnc_graph.mapping import ntriples as T
-from stepnc_graph.mapping.mapper import InstanceMapper
-from stepnc_graph.loading.derive import derive, iso14649_rules
+from stepnc_graph.mapping.editions import decide_edition, edition_plans, other_fit
+from stepnc_graph.mapping.mapper import DerivedTables, InstanceMapper
+from stepnc_graph.mapping.plans import EntityPlan
+from stepnc_graph.loading.derive import derive, edition_tables
 from stepnc_graph.mapping.plans import (
     P21_DUPLICATE,
+    P21_EDITION,
     P21_LINE,
     P21_RAW_TEXT,
     P21_SECTION,
     P21_SYNTAX_ERROR,
     P21_UNREADABLE_TEXT,
-    iso14649_plans,
 )
 from stepnc_graph.core.naming import (
     P21_NS,
@@ -104,7 +106,8 @@ class _Load:
     """
 
     def __init__(self, name: str, path: Path | None, raw: bytes, lenient: bool, graph: str,
-                 progress: Progress | None, derived: bool = True, positions: bool = True) -> None:
+                 progress: Progress | None, derived: bool = True, positions: bool = True,
+                 edition: str | None = None) -> None:
         self.path = path
         self.name = name
         text, encoding = decode_source(raw, name)
@@ -116,23 +119,41 @@ class _Load:
         self.reader.diagnostics[:0] = encoding
         prefix = instance_prefix(graph)
         several = len(_DATA_OPENER.findall(text)) > 1  # edition 3: instances record their section
-        self.mapper = InstanceMapper(iso14649_plans(),
+        #: the file's edition (``edition``, from ``--edition``, overrides what the file shows)
+        self.choice = decide_edition(text, self.reader.header, edition)
+        self.mapper = InstanceMapper(edition_plans(self.choice.edition),
                                      lambda i: f"{prefix}i{i}", defined_ids(text),
                                      name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
-                                     iso14649_rules().tables() if derived else None,
-                                     None if positions else {})
+                                     edition_tables(self.choice.edition) if derived else None,
+                                     None if positions else {}, self.other_edition)
         #: derived-layer triples the mapper wrote (None: none, see derive())
         self.derived_written: int | None = 0
         self.derived = derived
-        self.result = LoadResult(name, graph)
+        self.result = LoadResult(name, graph, edition=self.choice)
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
         self.started = time.perf_counter()
 
     @classmethod
-    def of_file(cls, path: str | Path, lenient: bool, base_iri: str | None, progress: Progress | None) -> "_Load":
+    def of_file(cls, path: str | Path, lenient: bool, base_iri: str | None, progress: Progress | None,
+                edition: str | None = None) -> "_Load":
         """The load of ``path`` into graph ``base_iri`` (default: from the file name)."""
         p = Path(path)
-        return cls(str(p), p, read_source(p), lenient, base_iri or default_graph_iri(str(p)), progress)
+        return cls(str(p), p, read_source(p), lenient, base_iri or default_graph_iri(str(p)), progress,
+                   edition=edition)
+
+    def other_edition(self, name: str, count: int) -> tuple[str, EntityPlan, DerivedTables | None, str] | None:
+        """Where an instance the file's edition cannot read (``name`` unknown there, or not with
+        ``count`` parameters) fits another edition: that edition, its plan and derived tables, and
+        what the file's edition has under the name (the mapper's P21-EDITION-MIX)."""
+        edition = other_fit(self.choice.edition, name, count)
+        if edition is None:
+            return None
+        plan = edition_plans(edition).entities[name.upper()]
+        mine = self.mapper.plans.entities.get(name.upper())
+        has = (f"{self.choice.edition} (this file's edition) has no {name}" if mine is None else
+               f"{self.choice.edition} (this file's edition) has {len(mine.slots)} "
+               f"({', '.join(s.name for s in mine.slots)})")
+        return edition, plan, edition_tables(edition) if self.derived else None, has
 
     def chunks(self) -> Iterator[Chunk]:
         out: list[str] = []
@@ -162,6 +183,7 @@ class _Load:
         result.unreadable = len(self.mapper.unreadable)
         result.unreadable_texts = len(self.reader.unreadable_texts)
         result.defined = self.reader.defined
+        result.other_editions = dict(self.mapper.editions)
         meta = self.metadata()
         result.triples += len(meta)
         yield "".join(out) + "".join(meta)
@@ -245,7 +267,15 @@ class _Load:
             f"{tool} {T.RDF_TYPE} <{PROV}SoftwareAgent> .\n",
             f"{tool} <{RDFS}label> {T.string('stepnc-graph ' + __version__)} .\n",
         ]
-        return out + _header_triples(g, self.reader.header) + self.edition3()
+        return out + _header_triples(g, self.reader.header) + self.edition3() + self.edition_triples()
+
+    def edition_triples(self) -> list[str]:
+        """The file's edition, how it was chosen and the evidence, on the graph's node (the writer
+        reads ``p21:edition`` to write the file back in it)."""
+        g, choice = f"<{self.graph}>", self.choice
+        return [f"{g} {P21_EDITION} {T.string(choice.edition)} .\n",
+                f"{g} <{P21_NS}editionChosenBy> {T.string(choice.chosen_by)} .\n",
+                *(f"{g} <{P21_NS}editionEvidence> {T.string(e)} .\n" for e in choice.evidence)]
 
     def edition3(self) -> list[str]:
         """ANCHOR, REFERENCE, DATA section and SIGNATURE triples (ISO 10303-21:2016, 9-11, 13)."""
@@ -324,36 +354,39 @@ class _Load:
                 for line, column, p21_id, target in sorted(found)]
 
 
-def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | None = None) -> Iterator[str]:
+def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
+                    edition: str | None = None) -> Iterator[str]:
     """The N-Triples a load of ``path`` writes, in chunks, without a store.
 
     Everything but the store-dependent last step (the reference check and the
     diagnostic count) and the derived layer; the benchmark uses it to time the
     store on its own.
     """
-    yield from (c for c in _Load.of_file(path, lenient, base_iri, None).chunks() if isinstance(c, str))
+    yield from (c for c in _Load.of_file(path, lenient, base_iri, None, edition).chunks() if isinstance(c, str))
 
 
 def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
-              progress: Progress | None = None) -> LoadResult:
+              progress: Progress | None = None, edition: str | None = None) -> LoadResult:
     """Load one Part 21 file as the named graph ``base_iri`` (default: from the file name).
 
     Raises :class:`~stepnc_graph.part21.Part21SyntaxError` in strict mode when
     the file does not parse (and ``OSError`` when it cannot be read); the store
     is then unchanged. Loading the same file again replaces its graph.
     """
-    return _run(store, _Load.of_file(path, lenient, base_iri, progress))
+    return _run(store, _Load.of_file(path, lenient, base_iri, progress, edition))
 
 
 def load_source(store: Store, source: Source, *, lenient: bool = False,
-                progress: Progress | None = None, derived: bool = True, positions: bool = True) -> LoadResult:
+                progress: Progress | None = None, derived: bool = True, positions: bool = True,
+                edition: str | None = None) -> LoadResult:
     """Load one planned input (:func:`stepnc_graph.loading.sources.plan_sources`): a file or standard input;
     a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.loading.jsonld`).
 
     ``derived=False`` writes no derived layer: for a throw-away store that only
     validation reads (shapes see the program graph alone). ``positions=False``
     (Part 21 only) writes no ``p21:id``/``p21:line`` triples and returns the lines
-    in :attr:`LoadResult.lines` instead, for the same use."""
+    in :attr:`LoadResult.lines` instead, for the same use. ``edition`` reads a Part 21 file in
+    that edition of ISO 14649 (:data:`stepnc_graph.mapping.editions.EDITIONS`) whatever it shows."""
     if source.path is not None and reads_as(source.path, "jsonld"):
         from stepnc_graph.loading.jsonld import JsonLdLoad
 
@@ -361,7 +394,8 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
         job.derived = derived
         return _run(store, job)
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
-    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived, positions))
+    return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived, positions,
+                             edition))
 
 
 def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
@@ -393,14 +427,14 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
 
 def load_paths(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
                progress: Progress | None = None, replace: bool = False, derived: bool = True,
-               positions: bool = True) -> list[LoadResult]:
+               positions: bool = True, edition: str | None = None) -> list[LoadResult]:
     """:func:`stepnc_graph.api.load`: each input into its own named graph, planned first."""
     sources = plan_sources(list(paths), base_iri)
     refuse_graph_name_clashes(store, [s.graph for s in sources])
     if not replace:
         refuse_replacing_other_files(store, sources)
-    return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions)
-            for s in sources]
+    return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions,
+                        edition=edition) for s in sources]
 
 
 def refuse_graph_name_clashes(store: Store, graphs: Sequence[str]) -> None:

@@ -22,6 +22,7 @@ from typing import Any
 from stepnc_graph.mapping import ntriples as T
 from stepnc_graph.mapping.plans import (
     P21_DERIVED,
+    P21_EDITION,
     P21_EMPTY,
     P21_ENTITY_NAME,
     P21_ID,
@@ -128,6 +129,18 @@ class DerivedTables:
     index: str = ""
 
 
+def merge_tables(a: DerivedTables, b: DerivedTables) -> DerivedTables:
+    """Tables that answer for the classes and properties of both (their IRIs never clash: editions
+    share a term only where they share its meaning)."""
+    return DerivedTables({**a.superclasses, **b.superclasses}, {**a.generic, **b.generic}, a.labels | b.labels,
+                         a.lists | b.lists, a.index or b.index)
+
+
+#: (entity name, parameter count) -> (edition, its plan, its derived tables, what the file's own
+#: edition has under that name) for an instance that fits another edition; None when none fits
+Fallback = Callable[[str, int], "tuple[str, EntityPlan, DerivedTables | None, str] | None"]
+
+
 class InstanceMapper:
     """Turns instances of one file into N-Triples lines for one named graph.
 
@@ -145,8 +158,13 @@ class InstanceMapper:
 
     def __init__(self, plans: Plans, subject: Callable[[int], str], defined: set[int], filename: str,
                  source: str, section: Callable[[int], str] | None = None,
-                 derived: DerivedTables | None = None, positions: dict[int, int] | None = None) -> None:
+                 derived: DerivedTables | None = None, positions: dict[int, int] | None = None,
+                 fallback: Fallback | None = None) -> None:
         self.plans = plans
+        #: where an instance that does not fit ``plans`` may fit another edition (see :meth:`map`)
+        self.fallback = fallback
+        #: #id -> the edition each instance read by :attr:`fallback` was read in
+        self.editions: dict[int, str] = {}
         self.positions = positions
         self.derived = derived
         #: derived-layer lines of the instances mapped so far (the loader takes them away)
@@ -350,14 +368,12 @@ class InstanceMapper:
         derived: list[str] | None = [] if self.derived is not None else None
         try:
             if inst.parts is None:
-                plan = self._plan(inst.name or "")
-                self._count(plan.name.upper(), plan.slots, inst.params)
-                lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
-                if derived is not None:
-                    self._closure(s, plan.cls, derived)
-                self._slots(s, plan.slots, inst.params, lines, derived)
-                if plan.its_id is not None:
-                    labels.append((plan.slots[plan.its_id].entity, inst.params[plan.its_id]))
+                try:
+                    plan = self._plan(inst.name or "")
+                    self._count(plan.name.upper(), plan.slots, inst.params)
+                    self._simple(s, plan, inst.params, lines, derived, labels)
+                except Mismatch as m:
+                    plan = self._other_edition(inst, m, s, lines, derived, labels)
                 if plan.abstract:
                     self._diagnose(inst, "P21-ABSTRACT", f"{plan.name} is ABSTRACT: instances belong to a subtype")
             else:
@@ -389,6 +405,39 @@ class InstanceMapper:
             # a complex instance's partial classes share superclasses: each triple once
             self.derived_lines.extend(derived if inst.parts is None else dict.fromkeys(derived))
         self._source(inst, s, out)
+
+    def _simple(self, s: str, plan: EntityPlan, params: list[Any], lines: list[str], derived: list[str] | None,
+                labels: list[tuple[str, Any]]) -> None:
+        """The triples of a simple instance that ``plan`` reads (parameter count checked)."""
+        lines.append(f"{s} {T.RDF_TYPE} <{plan.cls}> .\n")
+        if derived is not None:
+            self._closure(s, plan.cls, derived)
+        self._slots(s, plan.slots, params, lines, derived)
+        if plan.its_id is not None:
+            labels.append((plan.slots[plan.its_id].entity, params[plan.its_id]))
+
+    def _other_edition(self, inst: Instance, first: Mismatch, s: str, lines: list[str], derived: list[str] | None,
+                       labels: list[tuple[str, Any]]) -> EntityPlan:
+        """An instance the file's edition does not know by name or parameter count, read in the
+        edition it fits (:attr:`fallback`): its triples, ``p21:edition`` (so the writer writes it in
+        that form again) and a P21-EDITION-MIX warning at its #id. ``first`` again when none fits."""
+        found = None if self.fallback is None or first.code not in ("P21-UNKNOWN-ENTITY", "P21-ARGUMENT-COUNT") \
+            else self.fallback(inst.name or "", len(inst.params))
+        if found is None:
+            raise first
+        edition, plan, tables, own = found
+        del lines[:], labels[:]
+        if derived is not None:
+            del derived[:]
+        if tables is not None and self.derived is not None:
+            self.derived = merge_tables(self.derived, tables)
+        self._simple(s, plan, inst.params, lines, derived, labels)
+        lines.append(f"{s} {P21_EDITION} {T.string(edition)} .\n")
+        self.editions[inst.id] = edition
+        self._diagnose(inst, "P21-EDITION-MIX", f"{inst.name} with {len(inst.params)} parameter(s) is the {edition} "
+                                                f"form ({', '.join(sl.name for sl in plan.slots)}); {own}; read as "
+                                                f"{edition}")
+        return plan
 
     def _source(self, inst: Instance, s: str, out: list[str]) -> None:
         """Where the instance is in its file: #id, line, and (several DATA sections) its section."""

@@ -251,6 +251,8 @@ P21_VALUE = f"<{P21_NS}value>"
 P21_RAW = f"<{P21_NS}RawInstance>"
 P21_RAW_TEXT = f"<{P21_NS}rawText>"
 P21_ENTITY_NAME = f"<{P21_NS}entityName>"
+#: on an instance read in another edition than its file's (see mapping.editions), and on the file's graph
+P21_EDITION = f"<{P21_NS}edition>"
 P21_UNREADABLE = f"<{P21_NS}UnreadableInstance>"
 P21_SYNTAX_ERROR = f"<{P21_NS}syntaxError>"
 P21_REPAIRED_TEXT = f"<{P21_NS}repairedText>"

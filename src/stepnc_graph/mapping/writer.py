@@ -82,6 +82,15 @@ def _set_order(text: str) -> tuple[int, int, str]:
     return (0, int(text[1:]), "") if text[:1] == "#" and text[1:].isdigit() else (1, 0, text)
 
 
+def _edition_plans(edition: str) -> Plans:
+    """The plans that write instances of ``edition`` (a graph's or an instance's ``p21:edition``)."""
+    from stepnc_graph.mapping.editions import EDITIONS, edition_plans
+
+    if edition not in EDITIONS:
+        raise WriteError(f"p21:edition {edition!r} is not an edition stepnc-graph reads ({', '.join(EDITIONS)})")
+    return edition_plans(edition)
+
+
 class Part21Writer:
     """Serialises the triples of one graph (given as quads) to Part 21 text."""
 
@@ -89,6 +98,19 @@ class Part21Writer:
         self.plans = plans
         self.enum_items = plans.item_names
         self.typed_names = plans.typed_names
+        #: edition name -> a writer of that edition's plans sharing this one's graph (``p21:edition``)
+        self._editions: dict[str, Part21Writer] = {}
+
+    def _in_edition(self, edition: str | None) -> "Part21Writer":
+        """The writer for instances of ``edition`` (this one for None): the plans of
+        :func:`stepnc_graph.mapping.editions.edition_plans`, reading the same graph."""
+        if edition is None:
+            return self
+        if edition not in self._editions:
+            other = Part21Writer(_edition_plans(edition))
+            other.props, other.ids, other._editions = self.props, self.ids, self._editions
+            self._editions[edition] = other
+        return self._editions[edition]
 
     # -- reading the graph ----------------------------------------------------------
 
@@ -102,8 +124,13 @@ class Part21Writer:
         def text(term: str) -> str | None:
             return self._first(meta, term) if graph is not None else None
 
+        self.ids: dict[str, int] = {}
+        edition = self._first(meta, "edition") if graph is not None else None
+        if edition is not None:  # a program read in another edition: its instances are written in it
+            plans = _edition_plans(edition)
+            self.plans, self.enum_items, self.typed_names = plans, plans.item_names, plans.typed_names
         instances = self._instances(props)
-        self.ids = {key: i for i, key in instances}
+        self.ids.update({key: i for i, key in instances})
         schemas = self._schemas(props, graph)
         header = text("repairedHeaderText") or text("headerText") or _DEFAULT_HEADER.format(schemas=",".join(encode(s) for s in schemas))
         # edition 3: ANCHOR and REFERENCE sections verbatim (ids are kept, so they still hold)
@@ -214,6 +241,12 @@ class Part21Writer:
                            f"{p[P21_RAW_TEXT][0].value if P21_RAW_TEXT in p else ''}")
         if P21_RAW[1:-1] in types:
             return self._raw_text(p21_id, key)
+        own = self._first(key, "edition")
+        if own is not None:
+            return self._in_edition(own)._entity_text(p21_id, key, types)
+        return self._entity_text(p21_id, key, types)
+
+    def _entity_text(self, p21_id: int, key: str, types: list[str]) -> str:
         plans = [self.plans.by_class[t] for t in types if t in self.plans.by_class]
         if not plans:
             raise WriteError(f"{key} (#{p21_id}) has no entity type of the schema")

@@ -37,6 +37,7 @@ from stepnc_graph.validation import components as C
 from stepnc_graph.validation.compiled import CompiledShapesWarning
 from stepnc_graph.validation.engine import SHAPES_GRAPH, Check, Row, refuse_service, run
 from stepnc_graph.validation.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
+from stepnc_graph.validation.editions import edition_rules
 from stepnc_graph.validation.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validation.shapes import (
     RDF_FIRST,
@@ -172,7 +173,7 @@ def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> Comp
 def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shapes: Sequence[str | Path] = (),
              severity: str = "Info", lenient: bool = True, process: bool = True,
              shapes_dir: Path | None = None, iso_shapes: bool = True,
-             allow_service: bool = False) -> ValidationReport:
+             allow_service: bool = False, edition: str | None = None) -> ValidationReport:
     """Validate files (loaded into a throw-away store) or graphs of a store.
 
     ``source`` is a :class:`~stepnc_graph.store.GraphStore`, a
@@ -185,7 +186,9 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
     :class:`ShapesError` for unreadable or refused shapes, :class:`DataError`
     for an RDF file that does not parse and, with ``lenient=False``,
     :class:`~stepnc_graph.part21.Part21SyntaxError` for a Part 21 file that does not parse. A shape whose SPARQL has a ``SERVICE``
-    clause is refused (ShapesError) unless ``allow_service``.
+    clause is refused (ShapesError) unless ``allow_service``. ``edition`` reads every Part 21 file in
+    that edition of ISO 14649 (default: each file's own); the rules applied are its edition's
+    (:mod:`.editions`).
     """
     started = time.perf_counter()
     files = (shape_files(shapes_dir, process) if iso_shapes else []) + [Path(p) for p in extra_shapes]
@@ -213,13 +216,13 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
             report = _validate_store(copy, targets, shapes, list(checks), {})
     else:
         report = _validate_files([Path(p) for p in source], shapes, list(checks), lenient, needs_shapes,  # type: ignore[attr-defined]
-                                 iso_shapes)
+                                 iso_shapes, edition)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
 
 
 def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Check], lenient: bool,
-                    needs_shapes: bool, iso_shapes: bool) -> ValidationReport:
+                    needs_shapes: bool, iso_shapes: bool, edition: str | None = None) -> ValidationReport:
     """Load the files into a throw-away store (Part 21 by the loader, and JSON-LD program graphs
     when the ISO shapes run; other RDF by :mod:`.rdfdata`) and check each file's graph."""
     from stepnc_graph.loading.loader import load_paths as load
@@ -230,7 +233,8 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         if needs_shapes:
             _add_shapes_graph(store.oxigraph, shapes)
         # shapes read the program graph only; positions come from the load unless a check reads them
-        loaded = load(store, programs, lenient=lenient, derived=False, positions=_reads_positions(checks)) \
+        loaded = load(store, programs, lenient=lenient, derived=False, positions=_reads_positions(checks),
+                      edition=edition) \
             if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
@@ -344,7 +348,7 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
                       shapes.hierarchy, allow_service=True)  # validate() refused what it must before
         ran += n
         describer = _Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
-        results += describer.results(rows)
+        results += edition_rules(oxstore, graph, describer.results(rows))
         if data and graph in data:
             results += [_ill_typed_result(graph, bad) for bad in data[graph].ill_typed]
         elif graph in diagnostics:

@@ -77,6 +77,11 @@ TERMS: tuple[Term, ...] = (
     Term("instanceCount", "data", "Instances loaded from the file (mapped and raw)."),
     Term("rawInstanceCount", "data", "Instances kept raw because they do not fit the schema."),
     Term("diagnosticCount", "data", "Diagnostics the load reported."),
+    Term("edition", "data", "The edition of ISO 14649 a file was read in (on its graph: 2002, fdis2001), or, on an "
+                            "instance, the other edition whose form it has (the writer writes it in that form)."),
+    Term("editionChosenBy", "data", "How the file's edition was chosen: option (--edition), header (FILE_SCHEMA or "
+                                    "FILE_NAME), content (entity names only one edition has) or default."),
+    Term("editionEvidence", "data", "One piece of evidence for or against the file's edition, in words."),
     # edition 3 (ISO 10303-21:2016) structure
     Term("anchorName", "data", "A name the file's ANCHOR section gives the instance, for links from other files."),
     Term("externalReference", "data", "The resource the file's REFERENCE section says defines this instance outside the file."),

@@ -1341,6 +1341,9 @@ class P21(DefinedNamespace):
     derivedValue: URIRef
     diagnosticCount: URIRef
     duplicateDefinition: URIRef
+    edition: URIRef
+    editionChosenBy: URIRef
+    editionEvidence: URIRef
     elementType: URIRef
     emptyAggregate: URIRef
     entityName: URIRef
