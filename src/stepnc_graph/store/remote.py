@@ -57,13 +57,14 @@ from urllib.parse import urlsplit, urlunsplit
 import pyoxigraph as ox
 
 from stepnc_graph.store.bindings import bind_in_groups
-from stepnc_graph.core.naming import STAGING, refuse_strangers
+from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, refuse_strangers
 from stepnc_graph.core.outbound import outbound_keyword
 from stepnc_graph.store import Chunk, Companion, Shadow, StoreError, graph_layout
 
 ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
 TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
 USER_ENV, PASSWORD_ENV = "STEPNC_GRAPH_ENDPOINT_USER", "STEPNC_GRAPH_ENDPOINT_PASSWORD"
+AUTH_ENV = "STEPNC_GRAPH_ENDPOINT_AUTH"
 CA_ENV = "STEPNC_GRAPH_CA_BUNDLE"
 RETRIES_ENV = "STEPNC_GRAPH_RETRIES"
 TIMEOUT_ENV = "STEPNC_GRAPH_TIMEOUT"
@@ -97,6 +98,8 @@ class Endpoint:
     store_url: str
     headers: dict[str, str] = field(default_factory=dict, repr=False)  # repr=False: never print credentials
     auth: tuple[str, str] | None = field(default=None, repr=False)
+    #: how a user and password are sent: "basic", "digest", or "" (Basic, Digest once the server asks for it)
+    scheme: str = ""
     verify: bool | str = True
     timeout: float = DEFAULT_TIMEOUT
     retries: int = 5
@@ -121,12 +124,16 @@ class Endpoint:
         token, user, password = os.environ.get(TOKEN_ENV), os.environ.get(USER_ENV), os.environ.get(PASSWORD_ENV)
         headers = {"Authorization": f"Bearer {token}"} if token else {}
         retries = os.environ.get(RETRIES_ENV, "").strip()
+        scheme = os.environ.get(AUTH_ENV, "").strip().lower()
+        if scheme not in ("", "basic", "digest"):
+            raise StoreError(f"{AUTH_ENV}={scheme!r}: expected basic or digest")
         ca_bundle = os.environ.get(CA_ENV)
         if ca_bundle and not Path(ca_bundle).exists():
             raise StoreError(f"{CA_ENV} names {ca_bundle}, which does not exist")
         return cls(query_url or f"{root}/query", update_url or f"{root}/update", store_url or f"{root}/store",
                    headers, (user, password or "") if user and not token else None,
-                   ca_bundle or True, timeout=_timeout(timeout), retries=int(retries) if retries.isdigit() else 5)
+                   scheme, ca_bundle or True, timeout=_timeout(timeout),
+                   retries=int(retries) if retries.isdigit() else 5)
 
     def secrets(self) -> list[str]:
         """The credentials as they may appear in text: to be removed from every message."""
@@ -196,9 +203,13 @@ class RemoteStore:
         import requests
 
         self.endpoint = endpoint
+        #: True once the store answered the scan-free graph listing wrongly (see :meth:`_all_graphs`)
+        self._graph_listing_scans: bool | None = None
         self._http = requests.Session()
         self._http.headers.update(endpoint.headers)
-        self._http.auth = endpoint.auth
+        if endpoint.auth is not None:
+            self._http.auth = (requests.auth.HTTPDigestAuth(*endpoint.auth) if endpoint.scheme == "digest"
+                               else requests.auth.HTTPBasicAuth(*endpoint.auth))
         self._http.verify = endpoint.verify
 
     def close(self) -> None:
@@ -255,6 +266,8 @@ class RemoteStore:
             else:
                 if response.status_code < 400:
                     return response, content
+                if self._digest_asked(response):  # the server named the scheme: sent again with Digest, once
+                    return self._request(method, url, idempotent=idempotent, stream=stream, **kwargs)
                 body = (content or b"")[:300].decode("utf-8", "replace").strip()
                 failure = self._redact(f"{method} {_safe(url)} answered {response.status_code}: {body}")
                 retry = response.status_code in _TRANSIENT and (idempotent or response.status_code in (429, 503))
@@ -264,6 +277,18 @@ class RemoteStore:
                 time.sleep(delay)
                 delay *= 2
         raise RemoteError(f"{failure} (after {self.endpoint.retries + 1} attempts)")
+
+    def _digest_asked(self, response: Any) -> bool:
+        """Whether a 401 asks for HTTP Digest where Basic was sent (:data:`AUTH_ENV` unset): then
+        the session answers with Digest from now on (Virtuoso's authenticated endpoints)."""
+        import requests
+
+        challenge = response.headers.get("WWW-Authenticate", "").lower()
+        if (response.status_code != 401 or self.endpoint.auth is None or self.endpoint.scheme
+                or not challenge.startswith("digest") or isinstance(self._http.auth, requests.auth.HTTPDigestAuth)):
+            return False
+        self._http.auth = requests.auth.HTTPDigestAuth(*self.endpoint.auth)
+        return True
 
     def update(self, sparql: str) -> None:
         """One SPARQL Update request (one transaction in the store)."""
@@ -285,11 +310,23 @@ class RemoteStore:
         self._drop_stale_staging()
         stamp = int(time.time())
         staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
+
+        def target(name: str) -> str:
+            # the vocabulary graph, rewritten by a load when it is missing or stale, is staged
+            # and swapped in with the program: a failed load leaves it as it was too
+            if name == VOCABULARY_GRAPH and name not in staging:
+                staging[name] = f"{STAGING}{stamp}:{uuid.uuid4().hex}"
+            return staging[name]
+
+        doubles: set[bytes] = set()
         try:
             for name, body in _batches(chunks, BATCH_BYTES):
+                if name is None:
+                    doubles.update(_DOUBLE.findall(body))
                 self._post_graph(staging[name or graph], body)
+            self._check_doubles(graph, staging[graph], doubles)
             if before_commit is not None:
-                before_commit(lambda name: staging[name])
+                before_commit(target)
             # the swap: one request, so one transaction. ADD (a copy) and then dropping the
             # staging graph in a second request is MOVE's meaning; on Oxigraph 0.5 it keeps the
             # swap itself to a third of MOVE's time (measured: 700k quads, 21 s against 71 s)
@@ -299,6 +336,28 @@ class RemoteStore:
             self._drop_quietly(staging.values())
             raise
         self._drop_quietly(staging.values())
+
+    def _check_doubles(self, graph: str, staged: str, sent: set[bytes]) -> None:
+        """RemoteError unless the store gives back every xsd:double value written into ``staged``
+        (distinct values, compared as numbers: a store may write its own lexical form).
+
+        Some stores keep a double but answer it rounded, in every results format (Virtuoso 7: six
+        significant digits, so 0.123456789 reads back as 0.123457); every later query and export
+        would then hand back changed data. The load is refused before anything is swapped in."""
+        if not sent:
+            return
+        rows = self.query(f"SELECT DISTINCT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && "
+                          f"datatype(?o) = <{_XSD_DOUBLE}>) }} }}")
+        back = {_number(row[0].value) for row in rows if isinstance(row[0], ox.Literal)}
+        lost = sorted((text.decode() for text in sent if _number(text.decode()) not in back), key=len)
+        if lost:
+            near = [row[0].value for row in self.query(
+                f"SELECT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && datatype(?o) = "
+                f"<{_XSD_DOUBLE}> && ?o = {ox.Literal(lost[-1], datatype=ox.NamedNode(_XSD_DOUBLE))}) }} }} LIMIT 1")]
+            shown = f"{lost[-1]} reads back as {near[0]}" if near else f"{lost[-1]} does not read back"
+            raise RemoteError(f"{self.endpoint} does not give back the xsd:double values written ({shown}; "
+                              f"{len(lost)} of the {len(sent)} distinct values of <{graph}> differ): every query and "
+                              "export would hand back changed data, so it was not loaded (the store was not changed)")
 
     def _drop_quietly(self, graphs: Iterable[str]) -> None:
         """Drop staging graphs; if the server is gone, a later load drops them once stale."""
@@ -374,7 +433,12 @@ class RemoteStore:
         if prefixes:
             sparql = "".join(f"PREFIX {p}: <{iri}>\n" for p, iri in prefixes.items()) + sparql
         if options.get("use_default_graph_as_union") and default_graph is None:
+            # the embedded store's meaning, said in full: its graphs as the default graph, and
+            # (unless given) as the named graphs -- a store asked for a default graph alone may
+            # take every graph it has as named graphs (Virtuoso: its system graphs too), or none
             default_graph = [ox.NamedNode(g) for g in self.all_graphs()]
+            if named_graphs is None:
+                named_graphs = default_graph
         form: list[tuple[str, str]] = [("query", sparql)]
         form += [("default-graph-uri", _value(g)) for g in default_graph or ()]
         form += [("named-graph-uri", _value(g)) for g in named_graphs or ()]
@@ -383,11 +447,24 @@ class RemoteStore:
         return _answer(str(self.endpoint), response.headers.get("Content-Type", ""), content or b"", expected)
 
     def _all_graphs(self) -> list[str]:
-        rows = self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }")  # the graph names, no scan
-        return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode)]
+        """The names of the store's non-empty named graphs, the store's own system graphs left out.
+
+        ``GRAPH ?g { }`` lists the names without a scan, but several stores answer it wrongly
+        (Virtuoso, RDF4J/GraphDB, Comunica, Oxigraph before 0.4.7: one unbound row, or none):
+        an answer holding an unbound row, or no row on a store that has quads in a named graph,
+        is replaced by the answer of ``GRAPH ?g { ?s ?p ?o }``, which every store gets right."""
+        if self._graph_listing_scans is None:
+            rows = list(self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }"))
+            wrong = any(not isinstance(row[0], ox.NamedNode) for row in rows) or (
+                not rows and bool(self.query("ASK { GRAPH ?g { ?s ?p ?o } }")))
+            if not wrong:
+                return [g for g in (row[0].value for row in rows) if not system_graph(g)]
+            self._graph_listing_scans = True
+        rows = self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { ?s ?p ?o } }")
+        return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode) and not system_graph(row[0].value)]
 
     def all_graphs(self) -> list[str]:
-        """Every named graph but staging ones."""
+        """Every named graph but staging ones and the store's own system graphs (:func:`system_graph`)."""
         return sorted(g for g in self._all_graphs() if not g.startswith(STAGING))
 
     def graphs(self) -> list[str]:
@@ -399,8 +476,11 @@ class RemoteStore:
         return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
 
     def count(self, graph: str | None = None) -> int:
-        pattern = f"GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }}" if graph else "{ ?s ?p ?o } UNION { GRAPH ?g { ?s ?p ?o } }"
-        [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ {pattern} }}"))
+        """The triples of ``graph``; of every graph :meth:`all_graphs` lists for None (a store's
+        default graph may be the union of its graphs, its system graphs included: not counted)."""
+        if graph is None:
+            return sum(self.count(g) for g in self.all_graphs())
+        [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
         return int(row[0].value)
 
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
@@ -438,6 +518,19 @@ class RemoteStore:
     @property
     def oxigraph(self) -> ox.Store:
         raise StoreError(f"{self.endpoint} is a remote store: it has no embedded Oxigraph database")
+
+
+#: the graphs stores keep for themselves in every database (their IRIs start so): Virtuoso's
+#: RDF views, its Linked Data Platform vocabulary and its service description; GraphDB's
+#: inferred and system graphs. They are not the user's data, so no command lists, exports or
+#: queries them as such.
+SYSTEM_GRAPHS = ("http://www.openlinksw.com/schemas/virtrdf#", "http://www.w3.org/ns/ldp#",
+                 "http://localuriqaserver/", "http://www.ontotext.com/")
+
+
+def system_graph(name: str) -> bool:
+    """Whether ``name`` is one of a store's own graphs (:data:`SYSTEM_GRAPHS`)."""
+    return name.startswith(SYSTEM_GRAPHS)
 
 
 def _content(response: Any, timeout: float) -> bytes:
@@ -505,6 +598,8 @@ def _answer(endpoint: str, content_type: str, content: bytes, expected: Expected
                 raise RemoteError(f"{endpoint} answered RDF ({media_type}) where {wanted} were expected")
             return list(ox.parse(content, rdf))
         assert results is not None
+        if results == ox.QueryResultsFormat.JSON:
+            content = lenient_json_results(content, expected == "boolean")
         parsed = ox.parse_query_results(content, results)
         if isinstance(parsed, ox.QuerySolutions):
             got: Expected = tuple(v.value for v in parsed.variables)
@@ -520,6 +615,70 @@ def _answer(endpoint: str, content_type: str, content: bytes, expected: Expected
         raise RemoteError(f"{endpoint} answered with the variables {' '.join('?' + v for v in got) or '(none)'} "
                           f"where {wanted} were expected")
     return ox.parse_query_results(content, results)
+
+
+_XSD_DOUBLE = "http://www.w3.org/2001/XMLSchema#double"
+#: the lexical form of each xsd:double literal in N-Triples (the loader writes them unescaped)
+_DOUBLE = re.compile(rb'"([^"\\]*)"\^\^<' + re.escape(_XSD_DOUBLE.encode()) + rb">")
+
+
+def _number(text: str) -> str:
+    """An xsd:double's value, for comparing two lexical forms (NaN equal to itself)."""
+    try:
+        return repr(float(text.replace("INF", "inf")))
+    except ValueError:
+        return text
+
+
+#: a blank node label the SPARQL results formats allow but Oxigraph's parser does not (Virtuoso
+#: writes ``nodeID://b10576``): anything but the characters of a Turtle blank node label
+_LABEL_UNSAFE = re.compile(r"[^A-Za-z0-9_]")
+#: the variable of the one-row table Virtuoso 7 answers an ASK query with, in place of a boolean
+_VIRTUOSO_ASK = "__ASK_RETVAL"
+
+
+def lenient_json_results(content: bytes, boolean: bool) -> bytes:
+    """SPARQL JSON results as Oxigraph's strict parser takes them, where the results format is
+    lenient or a known store answers otherwise (the document is rewritten only then).
+
+    * A blank node's label is any string in the JSON results format (it only identifies the node
+      within the document); Oxigraph accepts only Turtle's label characters. A label with other
+      characters is written as ``x`` and its UTF-8 bytes in hex: the same label always the same.
+    * Virtuoso 7 answers an ASK query with a one-column table ``__ASK_RETVAL`` (one row holding
+      1 for true, no row for false): read as the boolean it means, when a boolean is expected.
+    """
+    if b'"bnode"' not in content and not (boolean and _VIRTUOSO_ASK.encode() in content):
+        return content
+    import json
+
+    try:
+        document = json.loads(content)
+    except ValueError:
+        return content  # the strict parser says what is wrong
+    if not isinstance(document, dict):
+        return content
+    head: Any = document.get("head") if isinstance(document.get("head"), dict) else {}
+    results: Any = document.get("results")
+    rows = results.get("bindings") if isinstance(results, dict) else None
+    if boolean and head.get("vars") == [_VIRTUOSO_ASK] and isinstance(rows, list) and len(rows) <= 1:
+        value = rows[0].get(_VIRTUOSO_ASK, {}).get("value") if rows and isinstance(rows[0], dict) else None
+        return json.dumps({"head": {}, "boolean": value not in (None, "0", "false")}).encode()
+
+    def safe(term: Any) -> Any:
+        if isinstance(term, dict) and term.get("type") == "bnode" and isinstance(term.get("value"), str):
+            label = term["value"]
+            if _LABEL_UNSAFE.search(label) or not label:
+                # the same label the same way in every answer: a store that keeps its labels
+                # from one query to the next (Virtuoso does) still lets one answer's node be
+                # found in the next, as the derivation of a program's lists needs
+                term = {**term, "value": "x" + label.encode("utf-8").hex()}
+        return term
+
+    for row in rows if isinstance(rows, list) else ():
+        if isinstance(row, dict):
+            for name, term in row.items():
+                row[name] = safe(term)
+    return json.dumps(document).encode()
 
 
 def open_remote(base: str | None = None, query_url: str | None = None, update_url: str | None = None,
