@@ -452,7 +452,8 @@ class RemoteStore:
         ``GRAPH ?g { }`` lists the names without a scan, but several stores answer it wrongly
         (Virtuoso, RDF4J/GraphDB, Comunica, Oxigraph before 0.4.7: one unbound row, or none):
         an answer holding an unbound row, or no row on a store that has quads in a named graph,
-        is replaced by the answer of ``GRAPH ?g { ?s ?p ?o }``, which every store gets right."""
+        is replaced by the answer of ``GRAPH ?g { ?s ?p ?o }`` grouped by ``?g``, which every store
+        gets right (the store's answer is remembered for the next listings)."""
         if self._graph_listing_scans is None:
             rows = list(self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }"))
             wrong = any(not isinstance(row[0], ox.NamedNode) for row in rows) or (
@@ -460,7 +461,9 @@ class RemoteStore:
             if not wrong:
                 return [g for g in (row[0].value for row in rows) if not system_graph(g)]
             self._graph_listing_scans = True
-        rows = self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { ?s ?p ?o } }")
+        # GROUP BY, not DISTINCT: the same answer, but Virtuoso 7 takes 50 s for DISTINCT over a
+        # few thousand quads and 0.07 s for GROUP BY
+        rows = self.query("SELECT ?g WHERE { GRAPH ?g { ?s ?p ?o } } GROUP BY ?g")
         return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode) and not system_graph(row[0].value)]
 
     def all_graphs(self) -> list[str]:
@@ -503,6 +506,19 @@ class RemoteStore:
                 except SyntaxError as exc:
                     raise RemoteError(f"{self.endpoint.store_url} answered graph {name} with N-Triples that do not "
                                       f"parse (cut short?): {exc}") from None
+
+    def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]:
+        """The quads matching a pattern (None: any term), as the embedded store's method: one
+        SELECT per graph (``graph`` None: every graph :meth:`all_graphs` lists). A blank node
+        cannot be asked for: its label means nothing to the store in another request."""
+        given = {"s": subject, "p": predicate, "o": obj}
+        if any(isinstance(term, ox.BlankNode) for term in given.values()):
+            raise StoreError(f"{self.endpoint} is a remote store: a blank node cannot be looked up by its label")
+        pattern = " ".join(str(term) if term is not None else f"?{name}" for name, term in given.items())
+        names = [ox.NamedNode(_value(graph))] if graph is not None else [ox.NamedNode(g) for g in self.all_graphs()]
+        for name in names:
+            for row in self.query(f"SELECT ?s ?p ?o WHERE {{ GRAPH {name} {{ {pattern} }} }}"):
+                yield ox.Quad(subject or row["s"], predicate or row["p"], obj or row["o"], name)
 
     def local_copy(self, graphs: str | Sequence[str] | None = None) -> Any:
         """An in-memory :class:`GraphStore` holding ``graphs`` (one, several, or every graph): for
