@@ -81,7 +81,7 @@ class VirtuosoServer:
     @property
     def options(self) -> list[str]:
         """The CLI options that reach this server (its URLs do not follow Oxigraph's layout)."""
-        return ["--endpoint", self.url, "--update-url", self.url,
+        return ["--query-url", self.url, "--update-url", self.url,
                 "--store-url", f"http://127.0.0.1:{self.port}/sparql-graph-crud"]
 
     def start(self) -> None:

@@ -43,36 +43,43 @@ names a CA file for a private PKI, and wins over ``REQUESTS_CA_BUNDLE`` and
 
 from __future__ import annotations
 
-import base64
 import os
 import re
 import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit, urlunsplit
 
 import pyoxigraph as ox
 
 from stepnc_graph.store.bindings import bind_in_groups
 from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, refuse_strangers
-from stepnc_graph.core.outbound import outbound_keyword
 from stepnc_graph.store import Chunk, Companion, Shadow, StoreError, graph_layout
+from stepnc_graph.store.answers import (
+    _XSD_DOUBLE,
+    _DOUBLE,
+    RemoteError,
+    _answer,
+    _expected,
+    _kind,
+    _number,
+    system_graph,
+)
+from stepnc_graph.store.endpoint import (
+    AUTH_ENV,
+    CA_ENV,
+    CONNECT_TIMEOUT,
+    DEFAULT_TIMEOUT,
+    ENDPOINT_ENV,
+    TIMEOUT_ENV,
+    Endpoint,
+    _safe,
+)
 
-ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
-TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
-USER_ENV, PASSWORD_ENV = "STEPNC_GRAPH_ENDPOINT_USER", "STEPNC_GRAPH_ENDPOINT_PASSWORD"
-AUTH_ENV = "STEPNC_GRAPH_ENDPOINT_AUTH"
-CA_ENV = "STEPNC_GRAPH_CA_BUNDLE"
-RETRIES_ENV = "STEPNC_GRAPH_RETRIES"
-TIMEOUT_ENV = "STEPNC_GRAPH_TIMEOUT"
-#: seconds to wait for the whole answer to one request (a load's final swap of a large program
-#: takes tens of seconds on Oxigraph: 21 s for 700k quads)
-DEFAULT_TIMEOUT = 120.0
-#: seconds to wait for a connection
-CONNECT_TIMEOUT = 10.0
+__all__ = ["AUTH_ENV", "DEFAULT_TIMEOUT", "ENDPOINT_ENV", "Endpoint", "RemoteError", "RemoteStore", "StoreError",
+           "open_remote"]
+
 #: bytes of N-Triples per Graph Store Protocol request of a load
 BATCH_BYTES = 8 << 20
 #: a staging graph older than this was left by an interrupted load and is dropped
@@ -83,88 +90,6 @@ _TRANSIENT = {429, 502, 503, 504}
 _RESULTS_JSON = "application/sparql-results+json"
 _NTRIPLES = "application/n-triples"
 _TURTLE = "text/turtle"
-
-
-class RemoteError(StoreError):
-    """A request the remote store refused or could not answer (after the retries)."""
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    """Where a remote store answers: the three URLs, credentials from the environment, TLS."""
-
-    query_url: str
-    update_url: str
-    store_url: str
-    headers: dict[str, str] = field(default_factory=dict, repr=False)  # repr=False: never print credentials
-    auth: tuple[str, str] | None = field(default=None, repr=False)
-    #: how a user and password are sent: "basic", "digest", or "" (Basic, Digest once the server asks for it)
-    scheme: str = ""
-    verify: bool | str = True
-    timeout: float = DEFAULT_TIMEOUT
-    retries: int = 5
-
-    @classmethod
-    def from_options(cls, base: str, query_url: str | None = None, update_url: str | None = None,
-                     store_url: str | None = None, timeout: float | None = None) -> "Endpoint":
-        """URLs from a base (Oxigraph's layout: ``BASE/query``, ``BASE/update``, ``BASE/store``)
-        or given one by one (Fuseki: ``/ds/query``, ``/ds/update``, ``/ds/data``); ``timeout``
-        (seconds) or ``$STEPNC_GRAPH_TIMEOUT`` or :data:`DEFAULT_TIMEOUT`."""
-        urls = [u for u in (base, query_url, update_url, store_url) if u]
-        for url in urls:
-            parts = urlsplit(url)
-            if parts.scheme not in ("http", "https") or not parts.netloc:
-                raise StoreError(f"endpoint {_safe(url)!r} is not an http(s) URL")
-            if parts.username or parts.password:
-                raise StoreError("an endpoint URL must not hold a user or password (they would land in shell "
-                                 f"history): set {TOKEN_ENV}, or {USER_ENV} and {PASSWORD_ENV}")
-        root = base.rstrip("/")
-        if root.endswith("/query"):  # given the query endpoint itself: its siblings
-            root = root[: -len("/query")]
-        token, user, password = os.environ.get(TOKEN_ENV), os.environ.get(USER_ENV), os.environ.get(PASSWORD_ENV)
-        headers = {"Authorization": f"Bearer {token}"} if token else {}
-        retries = os.environ.get(RETRIES_ENV, "").strip()
-        scheme = os.environ.get(AUTH_ENV, "").strip().lower()
-        if scheme not in ("", "basic", "digest"):
-            raise StoreError(f"{AUTH_ENV}={scheme!r}: expected basic or digest")
-        ca_bundle = os.environ.get(CA_ENV)
-        if ca_bundle and not Path(ca_bundle).exists():
-            raise StoreError(f"{CA_ENV} names {ca_bundle}, which does not exist")
-        return cls(query_url or f"{root}/query", update_url or f"{root}/update", store_url or f"{root}/store",
-                   headers, (user, password or "") if user and not token else None,
-                   scheme, ca_bundle or True, timeout=_timeout(timeout),
-                   retries=int(retries) if retries.isdigit() else 5)
-
-    def secrets(self) -> list[str]:
-        """The credentials as they may appear in text: to be removed from every message."""
-        found = [v.split(" ", 1)[-1] for v in self.headers.values()]
-        if self.auth is not None:
-            user, password = self.auth
-            found += [password, base64.b64encode(f"{user}:{password}".encode()).decode()]
-        return [f for f in found if len(f) >= 4]  # a 1-3 character secret would blank ordinary words
-
-    def __str__(self) -> str:
-        return _safe(self.query_url)
-
-
-def _timeout(given: float | None) -> float:
-    """The request timeout: given, else ``$STEPNC_GRAPH_TIMEOUT``, else the default; positive."""
-    if given is None:
-        text = os.environ.get(TIMEOUT_ENV, "").strip()
-        try:
-            given = float(text) if text else DEFAULT_TIMEOUT
-        except ValueError:
-            raise StoreError(f"{TIMEOUT_ENV}={text!r}: expected a number of seconds") from None
-    if not given > 0:
-        raise StoreError(f"the endpoint timeout must be a positive number of seconds, not {given}")
-    return given
-
-
-def _safe(url: str) -> str:
-    """``url`` without user, password or query string (for messages)."""
-    parts = urlsplit(url)
-    host = parts.hostname or ""
-    return urlunsplit((parts.scheme, host + (f":{parts.port}" if parts.port else ""), parts.path, "", ""))
 
 
 def _value(term: Any) -> str:
@@ -536,19 +461,6 @@ class RemoteStore:
         raise StoreError(f"{self.endpoint} is a remote store: it has no embedded Oxigraph database")
 
 
-#: the graphs stores keep for themselves in every database (their IRIs start so): Virtuoso's
-#: RDF views, its Linked Data Platform vocabulary and its service description; GraphDB's
-#: inferred and system graphs. They are not the user's data, so no command lists, exports or
-#: queries them as such.
-SYSTEM_GRAPHS = ("http://www.openlinksw.com/schemas/virtrdf#", "http://www.w3.org/ns/ldp#",
-                 "http://localuriqaserver/", "http://www.ontotext.com/")
-
-
-def system_graph(name: str) -> bool:
-    """Whether ``name`` is one of a store's own graphs (:data:`SYSTEM_GRAPHS`)."""
-    return name.startswith(SYSTEM_GRAPHS)
-
-
 def _content(response: Any, timeout: float) -> bytes:
     """The whole body of a streamed ``response``, read within ``timeout`` seconds however slowly
     it comes (requests' own timeout bounds each read, not the whole)."""
@@ -570,131 +482,6 @@ def _nothing_sent(error: Exception) -> bool:
 
     reason = getattr(error.args[0], "reason", None) if error.args else None
     return isinstance(reason, NewConnectionError) or "NewConnectionError" in str(error)
-
-
-#: what a query's answer must be: "boolean", "graph", or the SELECT's variables
-Expected = str | tuple[str, ...]
-
-
-def _expected(sparql: str, prefixes: dict[str, str] | None, substitutions: dict[Any, Any] | None) -> Expected | None:
-    """What answer ``sparql`` asks for, as Oxigraph parses it (on an empty store, where nothing is
-    found); None for a query with a SERVICE clause (which must not run here). Raises the
-    SyntaxError or RuntimeError the embedded store raises."""
-    if outbound_keyword(sparql) is not None:
-        return None
-    result = ox.Store().query(sparql, prefixes=prefixes, substitutions=substitutions)
-    if isinstance(result, ox.QueryBoolean):
-        return "boolean"
-    if isinstance(result, ox.QueryTriples):
-        return "graph"
-    return tuple(v.value for v in result.variables)
-
-
-def _kind(media_type: str) -> str:
-    """A media type as words for a message."""
-    if media_type in ("text/html", "application/xhtml+xml"):
-        return "an HTML page (a login page or a proxy's error page?)"
-    return media_type or "a body without a Content-Type"
-
-
-def _answer(endpoint: str, content_type: str, content: bytes, expected: Expected | None) -> Any:
-    """A query's answer (pyoxigraph results, or a list of triples), checked against what the
-    query asks for; RemoteError naming ``endpoint`` and what was expected otherwise."""
-    media_type = content_type.split(";")[0].strip().lower()
-    wanted = ("RDF (N-Triples)" if expected == "graph" else "a boolean" if expected == "boolean" else
-              f"SPARQL results with {' '.join('?' + v for v in expected)}" if expected is not None else "SPARQL results")
-    rdf = ox.RdfFormat.from_media_type(media_type)
-    results = {_RESULTS_JSON: ox.QueryResultsFormat.JSON,
-               "application/sparql-results+xml": ox.QueryResultsFormat.XML}.get(media_type)
-    if (expected == "graph" and rdf is None) or (expected != "graph" and results is None and rdf is None):
-        raise RemoteError(f"{endpoint} answered {_kind(media_type)} where {wanted} were expected")
-    try:
-        if rdf is not None:
-            if expected not in (None, "graph"):
-                raise RemoteError(f"{endpoint} answered RDF ({media_type}) where {wanted} were expected")
-            return list(ox.parse(content, rdf))
-        assert results is not None
-        if results == ox.QueryResultsFormat.JSON:
-            content = lenient_json_results(content, expected == "boolean")
-        parsed = ox.parse_query_results(content, results)
-        if isinstance(parsed, ox.QuerySolutions):
-            got: Expected = tuple(v.value for v in parsed.variables)
-            parsed.serialize(format=ox.QueryResultsFormat.TSV)  # reads every row: a cut document fails here
-        else:
-            got = "boolean"
-    except SyntaxError as exc:
-        raise RemoteError(f"{endpoint} answered {media_type} that does not parse (cut short?): {exc}") from None
-    if expected is not None and (got == "boolean") != (expected == "boolean"):
-        raise RemoteError(f"{endpoint} answered {'a boolean' if got == 'boolean' else 'rows'} where {wanted} "
-                          f"were expected")
-    if expected is not None and got != "boolean" and set(got) != set(expected):
-        raise RemoteError(f"{endpoint} answered with the variables {' '.join('?' + v for v in got) or '(none)'} "
-                          f"where {wanted} were expected")
-    return ox.parse_query_results(content, results)
-
-
-_XSD_DOUBLE = "http://www.w3.org/2001/XMLSchema#double"
-#: the lexical form of each xsd:double literal in N-Triples (the loader writes them unescaped)
-_DOUBLE = re.compile(rb'"([^"\\]*)"\^\^<' + re.escape(_XSD_DOUBLE.encode()) + rb">")
-
-
-def _number(text: str) -> str:
-    """An xsd:double's value, for comparing two lexical forms (NaN equal to itself)."""
-    try:
-        return repr(float(text.replace("INF", "inf")))
-    except ValueError:
-        return text
-
-
-#: a blank node label the SPARQL results formats allow but Oxigraph's parser does not (Virtuoso
-#: writes ``nodeID://b10576``): anything but the characters of a Turtle blank node label
-_LABEL_UNSAFE = re.compile(r"[^A-Za-z0-9_]")
-#: the variable of the one-row table Virtuoso 7 answers an ASK query with, in place of a boolean
-_VIRTUOSO_ASK = "__ASK_RETVAL"
-
-
-def lenient_json_results(content: bytes, boolean: bool) -> bytes:
-    """SPARQL JSON results as Oxigraph's strict parser takes them, where the results format is
-    lenient or a known store answers otherwise (the document is rewritten only then).
-
-    * A blank node's label is any string in the JSON results format (it only identifies the node
-      within the document); Oxigraph accepts only Turtle's label characters. A label with other
-      characters is written as ``x`` and its UTF-8 bytes in hex: the same label always the same.
-    * Virtuoso 7 answers an ASK query with a one-column table ``__ASK_RETVAL`` (one row holding
-      1 for true, no row for false): read as the boolean it means, when a boolean is expected.
-    """
-    if b'"bnode"' not in content and not (boolean and _VIRTUOSO_ASK.encode() in content):
-        return content
-    import json
-
-    try:
-        document = json.loads(content)
-    except ValueError:
-        return content  # the strict parser says what is wrong
-    if not isinstance(document, dict):
-        return content
-    head: Any = document.get("head") if isinstance(document.get("head"), dict) else {}
-    results: Any = document.get("results")
-    rows = results.get("bindings") if isinstance(results, dict) else None
-    if boolean and head.get("vars") == [_VIRTUOSO_ASK] and isinstance(rows, list) and len(rows) <= 1:
-        value = rows[0].get(_VIRTUOSO_ASK, {}).get("value") if rows and isinstance(rows[0], dict) else None
-        return json.dumps({"head": {}, "boolean": value not in (None, "0", "false")}).encode()
-
-    def safe(term: Any) -> Any:
-        if isinstance(term, dict) and term.get("type") == "bnode" and isinstance(term.get("value"), str):
-            label = term["value"]
-            if _LABEL_UNSAFE.search(label) or not label:
-                # the same label the same way in every answer: a store that keeps its labels
-                # from one query to the next (Virtuoso does) still lets one answer's node be
-                # found in the next, as the derivation of a program's lists needs
-                term = {**term, "value": "x" + label.encode("utf-8").hex()}
-        return term
-
-    for row in rows if isinstance(rows, list) else ():
-        if isinstance(row, dict):
-            for name, term in row.items():
-                row[name] = safe(term)
-    return json.dumps(document).encode()
 
 
 def open_remote(base: str | None = None, query_url: str | None = None, update_url: str | None = None,
