@@ -4,8 +4,9 @@ embedded store, in the same run.
     pip install -e '.[bench,test]' && python bench/endpoint_bench.py              # 100k instances
     python bench/endpoint_bench.py --size 10000 --repeat 5
 
-One program written by bench/generate.py; the endpoint is Oxigraph's own server (``oxigraph serve``
-from the ``oxigraph`` PyPI package, on a loopback port, persistent in a temporary directory):
+One program written by bench/generate.py; the endpoints are Oxigraph's own server (``oxigraph serve``
+from the ``oxigraph`` PyPI package) and Virtuoso (``virtuoso-t``, Debian ``virtuoso-opensource-7-bin``),
+each on loopback ports, persistent in a temporary directory (``--server`` picks one):
 
 * **load**: ``stepnc-graph load --store DIR`` (embedded) and ``stepnc-graph load --endpoint URL``
   (staging graphs uploaded over the Graph Store Protocol, then swapped in by one SPARQL Update), each
@@ -40,8 +41,25 @@ sys.path.insert(0, str(HERE))
 from generate import write  # noqa: E402
 from oxigraph_server import OxigraphServer, ServerUnavailable  # noqa: E402
 from startup_bench import cli_argv  # noqa: E402
+from virtuoso_server import VirtuosoServer  # noqa: E402
 
-def timed_cli(args: list[str], server: OxigraphServer | None = None) -> dict[str, float]:
+Server = OxigraphServer | VirtuosoServer
+
+
+def options(server: Server) -> list[str]:
+    """The CLI options that reach ``server``."""
+    return server.options if isinstance(server, VirtuosoServer) else ["--endpoint", server.url]
+
+
+def open_server(server: Server) -> Any:
+    from stepnc_graph.store.remote import open_remote
+
+    if isinstance(server, VirtuosoServer):
+        return open_remote(server.url, server.url, server.url, server.options[-1])
+    return open_remote(server.url)
+
+
+def timed_cli(args: list[str], server: Server | None = None) -> dict[str, float]:
     """Run the CLI once: wall seconds, its CPU seconds, and the server's CPU seconds meanwhile."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     server_before = server.cpu() if server else 0.0
@@ -55,7 +73,7 @@ def timed_cli(args: list[str], server: OxigraphServer | None = None) -> dict[str
             "server_cpu": (server.cpu() - server_before) if server else 0.0}
 
 
-def measure_queries(store: Any, repeat: int, server: OxigraphServer | None = None) -> dict[str, dict[str, float]]:
+def measure_queries(store: Any, repeat: int, server: Server | None = None) -> dict[str, dict[str, float]]:
     from stepnc_graph.querying.query import execute, library
 
     out = {}
@@ -76,15 +94,14 @@ def med(runs: list[dict[str, float]], key: str) -> float:
     return statistics.median(r[key] for r in runs)
 
 
-def run(size: int, repeat: int, load_repeat: int) -> None:
-    from stepnc_graph.store.remote import open_remote
+def run(size: int, repeat: int, load_repeat: int, kind: str, no_queries: bool = False) -> None:
     from stepnc_graph.store import GraphStore
 
     work = Path(tempfile.mkdtemp(prefix="stepnc-endpoint-"))
     try:
         program = work / f"program-{size}.stp"
         write(size, program)
-        server = OxigraphServer(work / "server")
+        server: Server = VirtuosoServer(work / "server") if kind == "virtuoso" else OxigraphServer(work / "server")
         try:
             server.start()
         except ServerUnavailable as exc:
@@ -95,19 +112,22 @@ def run(size: int, repeat: int, load_repeat: int) -> None:
             for i in range(load_repeat):
                 store_dir = work / f"store-{i}"
                 embedded.append(timed_cli(["load", "--store", str(store_dir), str(program)]))
-                remote.append(timed_cli(["load", "--endpoint", server.url, "--replace", str(program)], server))
+                remote.append(timed_cli(["load", *options(server), "--replace", str(program)], server))
                 if i + 1 < load_repeat:
                     shutil.rmtree(store_dir)
-            print(f"{size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of {load_repeat} load(s), "
+            print(f"{kind}: {size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of {load_repeat} load(s), "
                   f"{os.cpu_count()} CPUs, seconds")
             print(f"{'load':<10} {'wall':>8} {'CLI CPU':>8} {'server CPU':>10} {'inst/s':>8}")
             for label, runs in (("embedded", embedded), ("endpoint", remote)):
                 print(f"{label:<10} {med(runs, 'wall'):8.1f} {med(runs, 'cpu'):8.1f} {med(runs, 'server_cpu'):10.1f} "
                       f"{size / med(runs, 'wall'):8,.0f}")
-            print(f"endpoint / embedded wall: {med(remote, 'wall') / med(embedded, 'wall'):.2f}x\n")
+            print(f"endpoint / embedded wall: {med(remote, 'wall') / med(embedded, 'wall'):.2f}x, CPU (CLI + server): "
+                  f"{(med(remote, 'cpu') + med(remote, 'server_cpu')) / med(embedded, 'cpu'):.2f}x\n")
+            if no_queries:
+                return
             with GraphStore(work / f"store-{load_repeat - 1}", readonly=True) as store:
                 local = measure_queries(store, repeat)
-            far = measure_queries(open_remote(server.url), repeat, server)
+            far = measure_queries(open_server(server), repeat, server)
         finally:
             server.stop()
         report(local, far, repeat)
@@ -134,8 +154,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--size", type=int, default=100_000, help="instances of the generated program")
     parser.add_argument("--repeat", type=int, default=5, help="runs of each query (median)")
     parser.add_argument("--load-repeat", type=int, default=1, help="loads of each kind (median)")
+    parser.add_argument("--server", choices=["oxigraph", "virtuoso", "both"], default="both")
+    parser.add_argument("--no-queries", action="store_true", help="measure the loads only")
     args = parser.parse_args(argv)
-    run(args.size, args.repeat, args.load_repeat)
+    for kind in (["oxigraph", "virtuoso"] if args.server == "both" else [args.server]):
+        run(args.size, args.repeat, args.load_repeat, kind, args.no_queries)
 
 
 if __name__ == "__main__":

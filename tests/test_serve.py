@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -329,5 +330,70 @@ def test_the_timeout_bounds_a_service_call(store: Path) -> None:
         response = server.query(f"SELECT * WHERE {{ SERVICE <{hanging.url}> {{ ?s ?p ?o }} }}")
         assert response.status_code == 503 and "took longer than 2 s" in response.text
         assert time.monotonic() - started < 15
+    finally:
+        server.stop()
+
+
+def _library_store(tmp_path: Path) -> Path:
+    """A store of the example and the seed programs (several programs: whole-store answers)."""
+    path = tmp_path / "library-store"
+    with sg.open_store(path) as s:
+        sg.load(s, [EXAMPLE, *sorted((ROOT / "tests" / "fixtures" / "p21").glob("pass_*.stp"))])
+    return path
+
+
+def _rdflib_text(term: dict[str, str] | None) -> str:
+    """A SPARQL JSON term as rdflib shows it (rdflib normalises a literal's lexical form)."""
+    from rdflib import Literal
+
+    if term is None:
+        return ""
+    if term["type"] == "literal":
+        return str(Literal(term["value"], datatype=term.get("datatype"), lang=term.get("xml:lang")))
+    return term["value"]
+
+
+def test_standard_clients_get_the_library_answers_with_no_dataset_recipe(tmp_path: Path) -> None:
+    """SPARQLWrapper and rdflib's SPARQLStore send each library query as written; the rows are
+    those `stepnc-graph query` gives (the service's default dataset is the one the library is
+    written for), and the service description names the address clients use."""
+    from rdflib.plugins.stores.sparqlstore import SPARQLStore
+    from SPARQLWrapper import JSON as WRAPPER_JSON, SPARQLWrapper
+
+    from stepnc_graph.querying.query import library, query
+
+    path = _library_store(tmp_path)
+    expected: dict[str, list[list[str]]] = {}
+    as_rdflib: dict[str, list[list[str]]] = {}
+    with sg.open_store(path, readonly=True) as s:
+        for q in library():
+            params = {"tool_type": "grooving_tool"} if q.params else {}
+            result = json.loads(query(s, q.name, **params).serialize("json"))
+            expected[q.name] = [[row.get(v, {}).get("value", "") for v in result["head"]["vars"]]
+                                for row in result["results"]["bindings"]]
+            as_rdflib[q.name] = [[_rdflib_text(row.get(v)) for v in result["head"]["vars"]]
+                                 for row in result["results"]["bindings"]]
+    server = Serving(path)
+    try:
+        rdflib_store = SPARQLStore(f"{server.url}/query", returnFormat="json")
+        for q in library():
+            if q.params:
+                continue
+            wrapper = SPARQLWrapper(f"{server.url}/query")
+            wrapper.setQuery(q.text)  # SPARQLWrapper takes "Loading" in a comment for LOAD: sent as an update
+            wrapper.setReturnFormat(WRAPPER_JSON)
+            document = wrapper.query().convert()
+            rows = [[row.get(v, {}).get("value", "") for v in document["head"]["vars"]]
+                    for row in document["results"]["bindings"]]
+            assert rows == expected[q.name], q.name
+            answer = rdflib_store.query(q.text)  # rdflib writes a literal's value its own way ("15" as 15.0)
+            assert [["" if t is None else str(t) for t in row] for row in answer] == as_rdflib[q.name], q.name
+        description = requests.get(f"{server.url}/query", headers={"Accept": "application/n-triples"}, timeout=30)
+        assert description.status_code == 200
+        assert f"<{server.url}/query>" in description.text, description.text[:500]
+        turtle = requests.get(f"{server.url}/query", headers={"Accept": "text/turtle"}, timeout=30)
+        assert turtle.status_code == 200 and "sd:Service" in turtle.text
+        sample = server.query("SELECT * WHERE { ?s ?p ?o } LIMIT 10")  # the web page's pre-filled query
+        assert len(sample.json()["results"]["bindings"]) == 10
     finally:
         server.stop()

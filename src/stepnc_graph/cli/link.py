@@ -14,12 +14,14 @@ import click
 
 from stepnc_graph.cli.common import (
     EXIT_NONCONFORMING,
+    RemoteOptions,
     escape,
     open_writer,
     out,
     reports_errors,
     store_option,
     wait_option,
+    with_endpoint,
 )
 
 
@@ -28,14 +30,15 @@ from stepnc_graph.cli.common import (
 @click.option("--graph", default=None, help="The program graph to link (see `stepnc-graph info`); default: the "
                                             "store's only program.")
 @store_option
+@with_endpoint
 @wait_option
 @click.option("--allow-unknown", is_flag=True,
               help="Link the rows that match and report the others (exit 1), instead of linking nothing (exit 2).")
 @click.option("--replace", is_flag=True, help="Replace the links of another mapping file with the same file name.")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
-def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bool, allow_unknown: bool,
-             replace: bool, fmt: str) -> None:
+def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, remote: RemoteOptions, wait: bool,
+             allow_unknown: bool, replace: bool, fmt: str) -> None:
     """Attach PLM identifiers (part numbers, tool catalogue numbers, document IDs) to program entities.
 
     MAPPING is a CSV file (header: its_id and/or p21_id, optional scope,
@@ -57,7 +60,7 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bo
         check_iri(graph, "--graph")
     from stepnc_graph.loading.link import link
 
-    with open_writer(store_path, wait=wait, create=False) as store:
+    with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
         result = link(store, mapping, graph, allow_unknown=allow_unknown, replace=replace)
     if fmt == "json":
         click.echo(json.dumps(result.asdict(), indent=2))

@@ -23,8 +23,11 @@ from stepnc_graph.cli.common import err, escape, out, reports_errors, store_opti
               help="Refuse (507) a result larger than this.")
 @click.option("--max-request-bytes", default=16 << 20, show_default=True, type=click.IntRange(1),
               help="Refuse (413) a request whose body is larger than this.")
-@click.option("--union-default-graph", is_flag=True,
-              help="Queries without GRAPH see every graph (Oxigraph's option); otherwise use GRAPH ?g { ... }.")
+@click.option("--union-default-graph/--no-union-default-graph", default=True, show_default=True,
+              help="A query without a dataset of its own (no FROM, no default-graph-uri) sees every graph as its "
+                   "default graph, as `stepnc-graph query` runs the library: any library query sent as written "
+                   "gets the rows `stepnc-graph query` gives. --no-union-default-graph: only the (empty) default "
+                   "graph; then use GRAPH ?g { ... }.")
 @click.option("--allow-service", is_flag=True,
               help="Run SERVICE clauses (and LOAD in updates): the server then sends requests to any URL a "
                    "client names. Refused (403) otherwise. Prints a warning.")

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 from functools import lru_cache
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -74,17 +75,20 @@ def vocabulary_status(store: Store, directory: Path | None = None) -> str:
     return "current" if found == vocabulary_digest(directory) else "stale"
 
 
-def ensure_vocabulary(store: Store, directory: Path | None = None) -> bool:
+def ensure_vocabulary(store: Store, directory: Path | None = None,
+                      target: Callable[[str], str] | None = None) -> bool:
     """Write the vocabulary graph when it is missing or stale; True if it was written.
 
     Called by the loader inside a file's atomic load (``before_commit``), so
-    on disk the rewrite is covered by the load's checkpoint.
+    on disk the rewrite is covered by the load's checkpoint; ``target`` (the load's) names the
+    graph to write instead, which a remote store stages and swaps in with the program.
     """
     value = vocabulary_digest(directory)
     if stored_digest(store) == value:
         return False
-    store.update(f"DROP SILENT GRAPH <{VOCABULARY_GRAPH}>")
-    store.add_turtle(VOCABULARY_GRAPH, vocabulary_turtle(directory))
+    where = target(VOCABULARY_GRAPH) if target is not None else VOCABULARY_GRAPH
+    store.update(f"DROP SILENT GRAPH <{where}>")
+    store.add_turtle(where, vocabulary_turtle(directory))
     return True
 
 

@@ -415,7 +415,7 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
         if store.capabilities.persistent:
             # a persistent store (on disk, or remote) always holds the vocabulary; a
             # throw-away one gets it when a query first needs it (query.execute)
-            ensure_vocabulary(store)
+            ensure_vocabulary(store, target=target)
         if job.derived:
             job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written).triples
 

@@ -43,7 +43,7 @@ from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
+from stepnc_graph.core.outbound import OutboundRefused, outbound_keyword, refuse_outbound
 from stepnc_graph.store import GraphStore, StoreError
 from stepnc_graph.store.locks import Locks
 
@@ -419,6 +419,11 @@ class _Forward(http.server.BaseHTTPRequestHandler):
 
     # -- the answer ----------------------------------------------------------------------
 
+    def _public(self) -> str:
+        """This endpoint's address as the client named it (its Host, already checked), else its own."""
+        host = self.headers.get("Host", "")
+        return f"http://{host}" if host and self.endpoint.host_allowed(host) else self.endpoint.url
+
     def _send(self, request: _Request) -> None:
         endpoint = self.endpoint
         if request.writes and not endpoint.writable:
@@ -448,6 +453,9 @@ class _Forward(http.server.BaseHTTPRequestHandler):
             raise _Refused(507, f"the result is larger than {endpoint.max_bytes} bytes: ask for less (LIMIT, a "
                                 "narrower graph), or start serve with a larger --max-bytes")
         media_type = (response.getheader("Content-Type") or "").split(";")[0].strip().lower()
+        if response.status == 200 and request.method in ("GET", "HEAD") and _describes_service(request.path):
+            # the service description names the back end's own address: clients get this one's
+            data = data.replace(f"http://127.0.0.1:{backend.port}/".encode(), f"{self._public()}/".encode())
         broken = _incomplete(data, media_type) if response.status == 200 and self.command != "HEAD" else None
         if broken is not None:
             raise _Refused(500, f"the Oxigraph server failed while writing the result: {broken}")
@@ -459,6 +467,12 @@ class _Forward(http.server.BaseHTTPRequestHandler):
         self.end_headers()
         if self.command != "HEAD":
             self.wfile.write(data)
+
+
+def _describes_service(target: str) -> bool:
+    """Whether a GET of ``target`` asks for the service description (a SPARQL path, no operation)."""
+    path, _, query_string = target.partition("?")
+    return path in _SPARQL_PATHS and not any(k in ("query", "update") for k, _ in parse_qsl(query_string))
 
 
 #: paths where Oxigraph's server runs SPARQL operations, and what each runs from a direct body
@@ -499,6 +513,10 @@ def _prepare(method: str, target: str, headers: Any, body: bytes | None, endpoin
         raise _Refused(400, "give one query or one update per request")
     if operations:
         kind, text = operations[0]
+        if kind == "update" and _is_query(text):
+            # some clients guess the operation from the words of its text (SPARQLWrapper takes
+            # "Loading" in a comment for LOAD) and send a query as an update: the text decides
+            kind = "query"
         try:
             refuse_outbound(text, update=kind == "update", allow=endpoint.allow_service)
         except OutboundRefused as exc:
@@ -515,6 +533,18 @@ def _prepare(method: str, target: str, headers: Any, body: bytes | None, endpoin
     forwarded = {k: v for k, v in headers.items() if k.lower() not in _HOP_BY_HOP and k.lower() != "host"}
     writes = method in _WRITES or (method == "POST" and not sparql_path)
     return _Request(method, target, body, forwarded, writes)
+
+
+def _is_query(text: str) -> bool:
+    """Whether ``text`` parses as a SPARQL query (on an empty store, where it finds nothing; never
+    one that may send a request: SERVICE)."""
+    if outbound_keyword(text) is not None:
+        return False
+    try:
+        ox.Store().query(text)
+    except (SyntaxError, RuntimeError, ValueError):
+        return False
+    return True
 
 
 def _text(data: bytes, what: str) -> str:
@@ -579,8 +609,8 @@ def _incomplete(data: bytes, media_type: str) -> str | None:
                 parsed.serialize(format=ox.QueryResultsFormat.TSV)  # reads every row, in Rust
             return None
         rdf = ox.RdfFormat.from_media_type(media_type)
-        if rdf is not None:
-            for _ in ox.parse(data, rdf):
+        if rdf is not None:  # relative IRIs (the service description's <>) are the client's to resolve
+            for _ in ox.parse(data, rdf, base_iri="http://localhost/"):
                 pass
         return None
     except (SyntaxError, ValueError) as exc:

@@ -43,36 +43,44 @@ names a CA file for a private PKI, and wins over ``REQUESTS_CA_BUNDLE`` and
 
 from __future__ import annotations
 
-import base64
 import os
 import re
 import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit, urlunsplit
 
 import pyoxigraph as ox
 
 from stepnc_graph.store.bindings import bind_in_groups
-from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
-from stepnc_graph.core.outbound import outbound_keyword
+from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, graph_layout, refuse_strangers
 from stepnc_graph.store import StoreError
 from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Shadow
+from stepnc_graph.store.answers import (
+    _XSD_DOUBLE,
+    _DOUBLE,
+    RemoteError,
+    _answer,
+    _expected,
+    _kind,
+    _number,
+    system_graph,
+)
+from stepnc_graph.store.endpoint import (
+    AUTH_ENV,
+    CA_ENV,
+    CONNECT_TIMEOUT,
+    DEFAULT_TIMEOUT,
+    ENDPOINT_ENV,
+    TIMEOUT_ENV,
+    Endpoint,
+    _safe,
+)
 
-ENDPOINT_ENV = "STEPNC_GRAPH_ENDPOINT"
-TOKEN_ENV = "STEPNC_GRAPH_ENDPOINT_TOKEN"
-USER_ENV, PASSWORD_ENV = "STEPNC_GRAPH_ENDPOINT_USER", "STEPNC_GRAPH_ENDPOINT_PASSWORD"
-CA_ENV = "STEPNC_GRAPH_CA_BUNDLE"
-RETRIES_ENV = "STEPNC_GRAPH_RETRIES"
-TIMEOUT_ENV = "STEPNC_GRAPH_TIMEOUT"
-#: seconds to wait for the whole answer to one request (a load's final swap of a large program
-#: takes tens of seconds on Oxigraph: 21 s for 700k quads)
-DEFAULT_TIMEOUT = 120.0
-#: seconds to wait for a connection
-CONNECT_TIMEOUT = 10.0
+__all__ = ["AUTH_ENV", "DEFAULT_TIMEOUT", "ENDPOINT_ENV", "Endpoint", "RemoteError", "RemoteStore", "StoreError",
+           "open_remote"]
+
 #: bytes of N-Triples per Graph Store Protocol request of a load
 BATCH_BYTES = 8 << 20
 #: a staging graph older than this was left by an interrupted load and is dropped
@@ -83,82 +91,6 @@ _TRANSIENT = {429, 502, 503, 504}
 _RESULTS_JSON = "application/sparql-results+json"
 _NTRIPLES = "application/n-triples"
 _TURTLE = "text/turtle"
-
-
-class RemoteError(StoreError):
-    """A request the remote store refused or could not answer (after the retries)."""
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    """Where a remote store answers: the three URLs, credentials from the environment, TLS."""
-
-    query_url: str
-    update_url: str
-    store_url: str
-    headers: dict[str, str] = field(default_factory=dict, repr=False)  # repr=False: never print credentials
-    auth: tuple[str, str] | None = field(default=None, repr=False)
-    verify: bool | str = True
-    timeout: float = DEFAULT_TIMEOUT
-    retries: int = 5
-
-    @classmethod
-    def from_options(cls, base: str, query_url: str | None = None, update_url: str | None = None,
-                     store_url: str | None = None, timeout: float | None = None) -> "Endpoint":
-        """URLs from a base (Oxigraph's layout: ``BASE/query``, ``BASE/update``, ``BASE/store``)
-        or given one by one (Fuseki: ``/ds/query``, ``/ds/update``, ``/ds/data``); ``timeout``
-        (seconds) or ``$STEPNC_GRAPH_TIMEOUT`` or :data:`DEFAULT_TIMEOUT`."""
-        urls = [u for u in (base, query_url, update_url, store_url) if u]
-        for url in urls:
-            parts = urlsplit(url)
-            if parts.scheme not in ("http", "https") or not parts.netloc:
-                raise StoreError(f"endpoint {_safe(url)!r} is not an http(s) URL")
-            if parts.username or parts.password:
-                raise StoreError("an endpoint URL must not hold a user or password (they would land in shell "
-                                 f"history): set {TOKEN_ENV}, or {USER_ENV} and {PASSWORD_ENV}")
-        root = base.rstrip("/")
-        if root.endswith("/query"):  # given the query endpoint itself: its siblings
-            root = root[: -len("/query")]
-        token, user, password = os.environ.get(TOKEN_ENV), os.environ.get(USER_ENV), os.environ.get(PASSWORD_ENV)
-        headers = {"Authorization": f"Bearer {token}"} if token else {}
-        retries = os.environ.get(RETRIES_ENV, "").strip()
-        ca_bundle = os.environ.get(CA_ENV)
-        if ca_bundle and not Path(ca_bundle).exists():
-            raise StoreError(f"{CA_ENV} names {ca_bundle}, which does not exist")
-        return cls(query_url or f"{root}/query", update_url or f"{root}/update", store_url or f"{root}/store",
-                   headers, (user, password or "") if user and not token else None,
-                   ca_bundle or True, timeout=_timeout(timeout), retries=int(retries) if retries.isdigit() else 5)
-
-    def secrets(self) -> list[str]:
-        """The credentials as they may appear in text: to be removed from every message."""
-        found = [v.split(" ", 1)[-1] for v in self.headers.values()]
-        if self.auth is not None:
-            user, password = self.auth
-            found += [password, base64.b64encode(f"{user}:{password}".encode()).decode()]
-        return [f for f in found if len(f) >= 4]  # a 1-3 character secret would blank ordinary words
-
-    def __str__(self) -> str:
-        return _safe(self.query_url)
-
-
-def _timeout(given: float | None) -> float:
-    """The request timeout: given, else ``$STEPNC_GRAPH_TIMEOUT``, else the default; positive."""
-    if given is None:
-        text = os.environ.get(TIMEOUT_ENV, "").strip()
-        try:
-            given = float(text) if text else DEFAULT_TIMEOUT
-        except ValueError:
-            raise StoreError(f"{TIMEOUT_ENV}={text!r}: expected a number of seconds") from None
-    if not given > 0:
-        raise StoreError(f"the endpoint timeout must be a positive number of seconds, not {given}")
-    return given
-
-
-def _safe(url: str) -> str:
-    """``url`` without user, password or query string (for messages)."""
-    parts = urlsplit(url)
-    host = parts.hostname or ""
-    return urlunsplit((parts.scheme, host + (f":{parts.port}" if parts.port else ""), parts.path, "", ""))
 
 
 def _value(term: Any) -> str:
@@ -197,9 +129,13 @@ class RemoteStore:
         import requests
 
         self.endpoint = endpoint
+        #: True once the store answered the scan-free graph listing wrongly (see :meth:`_all_graphs`)
+        self._graph_listing_scans: bool | None = None
         self._http = requests.Session()
         self._http.headers.update(endpoint.headers)
-        self._http.auth = endpoint.auth
+        if endpoint.auth is not None:
+            self._http.auth = (requests.auth.HTTPDigestAuth(*endpoint.auth) if endpoint.scheme == "digest"
+                               else requests.auth.HTTPBasicAuth(*endpoint.auth))
         self._http.verify = endpoint.verify
 
     def close(self) -> None:
@@ -256,6 +192,8 @@ class RemoteStore:
             else:
                 if response.status_code < 400:
                     return response, content
+                if self._digest_asked(response):  # the server named the scheme: sent again with Digest, once
+                    return self._request(method, url, idempotent=idempotent, stream=stream, **kwargs)
                 body = (content or b"")[:300].decode("utf-8", "replace").strip()
                 failure = self._redact(f"{method} {_safe(url)} answered {response.status_code}: {body}")
                 retry = response.status_code in _TRANSIENT and (idempotent or response.status_code in (429, 503))
@@ -265,6 +203,18 @@ class RemoteStore:
                 time.sleep(delay)
                 delay *= 2
         raise RemoteError(f"{failure} (after {self.endpoint.retries + 1} attempts)")
+
+    def _digest_asked(self, response: Any) -> bool:
+        """Whether a 401 asks for HTTP Digest where Basic was sent (:data:`AUTH_ENV` unset): then
+        the session answers with Digest from now on (Virtuoso's authenticated endpoints)."""
+        import requests
+
+        challenge = response.headers.get("WWW-Authenticate", "").lower()
+        if (response.status_code != 401 or self.endpoint.auth is None or self.endpoint.scheme
+                or not challenge.startswith("digest") or isinstance(self._http.auth, requests.auth.HTTPDigestAuth)):
+            return False
+        self._http.auth = requests.auth.HTTPDigestAuth(*self.endpoint.auth)
+        return True
 
     def update(self, sparql: str) -> None:
         """One SPARQL Update request (one transaction in the store)."""
@@ -286,11 +236,23 @@ class RemoteStore:
         self._drop_stale_staging()
         stamp = int(time.time())
         staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
+
+        def target(name: str) -> str:
+            # the vocabulary graph, rewritten by a load when it is missing or stale, is staged
+            # and swapped in with the program: a failed load leaves it as it was too
+            if name == VOCABULARY_GRAPH and name not in staging:
+                staging[name] = f"{STAGING}{stamp}:{uuid.uuid4().hex}"
+            return staging[name]
+
+        doubles: set[bytes] = set()
         try:
             for name, body in _batches(chunks, BATCH_BYTES):
+                if name is None:
+                    doubles.update(_DOUBLE.findall(body))
                 self._post_graph(staging[name or graph], body)
+            self._check_doubles(graph, staging[graph], doubles)
             if before_commit is not None:
-                before_commit(lambda name: staging[name])
+                before_commit(target)
             # the swap: one request, so one transaction. ADD (a copy) and then dropping the
             # staging graph in a second request is MOVE's meaning; on Oxigraph 0.5 it keeps the
             # swap itself to a third of MOVE's time (measured: 700k quads, 21 s against 71 s)
@@ -300,6 +262,28 @@ class RemoteStore:
             self._drop_quietly(staging.values())
             raise
         self._drop_quietly(staging.values())
+
+    def _check_doubles(self, graph: str, staged: str, sent: set[bytes]) -> None:
+        """RemoteError unless the store gives back every xsd:double value written into ``staged``
+        (distinct values, compared as numbers: a store may write its own lexical form).
+
+        Some stores keep a double but answer it rounded, in every results format (Virtuoso 7: six
+        significant digits, so 0.123456789 reads back as 0.123457); every later query and export
+        would then hand back changed data. The load is refused before anything is swapped in."""
+        if not sent:
+            return
+        rows = self.query(f"SELECT DISTINCT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && "
+                          f"datatype(?o) = <{_XSD_DOUBLE}>) }} }}")
+        back = {_number(row[0].value) for row in rows if isinstance(row[0], ox.Literal)}
+        lost = sorted((text.decode() for text in sent if _number(text.decode()) not in back), key=len)
+        if lost:
+            near = [row[0].value for row in self.query(
+                f"SELECT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && datatype(?o) = "
+                f"<{_XSD_DOUBLE}> && ?o = {ox.Literal(lost[-1], datatype=ox.NamedNode(_XSD_DOUBLE))}) }} }} LIMIT 1")]
+            shown = f"{lost[-1]} reads back as {near[0]}" if near else f"{lost[-1]} does not read back"
+            raise RemoteError(f"{self.endpoint} does not give back the xsd:double values written ({shown}; "
+                              f"{len(lost)} of the {len(sent)} distinct values of <{graph}> differ): every query and "
+                              "export would hand back changed data, so it was not loaded (the store was not changed)")
 
     def _drop_quietly(self, graphs: Iterable[str]) -> None:
         """Drop staging graphs; if the server is gone, a later load drops them once stale."""
@@ -375,12 +359,12 @@ class RemoteStore:
         if prefixes:
             sparql = "".join(f"PREFIX {p}: <{iri}>\n" for p, iri in prefixes.items()) + sparql
         if options.get("use_default_graph_as_union") and default_graph is None:
+            # the embedded store's meaning, said in full: its graphs as the default graph, and
+            # (unless given) as the named graphs -- a store asked for a default graph alone may
+            # take every graph it has as named graphs (Virtuoso: its system graphs too), or none
             default_graph = [ox.NamedNode(g) for g in self.all_graphs()]
-        if default_graph is not None and named_graphs is None:
-            # pyoxigraph's meaning: no list of named graphs is every graph of the store. The
-            # protocol's is none at all once default-graph-uri is given (SPARQL 1.1 Protocol
-            # 2.1.4), which left GRAPH ?g empty: name them all.
-            named_graphs = [ox.NamedNode(g) for g in self.all_graphs()]
+            if named_graphs is None:
+                named_graphs = default_graph
         form: list[tuple[str, str]] = [("query", sparql)]
         form += [("default-graph-uri", _value(g)) for g in default_graph or ()]
         form += [("named-graph-uri", _value(g)) for g in named_graphs or ()]
@@ -389,19 +373,38 @@ class RemoteStore:
         return _answer(str(self.endpoint), response.headers.get("Content-Type", ""), content or b"", expected)
 
     def _all_graphs(self) -> list[str]:
-        rows = self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }")  # the graph names, no scan
-        return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode)]
+        """The names of the store's non-empty named graphs, the store's own system graphs left out.
+
+        ``GRAPH ?g { }`` lists the names without a scan, but several stores answer it wrongly
+        (Virtuoso, RDF4J/GraphDB, Comunica, Oxigraph before 0.4.7: one unbound row, or none):
+        an answer holding an unbound row, or no row on a store that has quads in a named graph,
+        is replaced by the answer of ``GRAPH ?g { ?s ?p ?o }`` grouped by ``?g``, which every store
+        gets right (the store's answer is remembered for the next listings)."""
+        if self._graph_listing_scans is None:
+            rows = list(self.query("SELECT DISTINCT ?g WHERE { GRAPH ?g { } }"))
+            wrong = any(not isinstance(row[0], ox.NamedNode) for row in rows) or (
+                not rows and bool(self.query("ASK { GRAPH ?g { ?s ?p ?o } }")))
+            if not wrong:
+                return [g for g in (row[0].value for row in rows) if not system_graph(g)]
+            self._graph_listing_scans = True
+        # GROUP BY, not DISTINCT: the same answer, but Virtuoso 7 takes 50 s for DISTINCT over a
+        # few thousand quads and 0.07 s for GROUP BY
+        rows = self.query("SELECT ?g WHERE { GRAPH ?g { ?s ?p ?o } } GROUP BY ?g")
+        return [row[0].value for row in rows if isinstance(row[0], ox.NamedNode) and not system_graph(row[0].value)]
 
     def all_graphs(self) -> list[str]:
-        """Every named graph but staging ones."""
+        """Every named graph but staging ones and the store's own system graphs (:func:`system_graph`)."""
         return sorted(g for g in self._all_graphs() if not g.startswith(STAGING))
 
     def has_graph(self, graph: str) -> bool:
         return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
 
     def count(self, graph: str | None = None) -> int:
-        pattern = f"GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }}" if graph else "{ ?s ?p ?o } UNION { GRAPH ?g { ?s ?p ?o } }"
-        [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ {pattern} }}"))
+        """The triples of ``graph``; of every graph :meth:`all_graphs` lists for None (a store's
+        default graph may be the union of its graphs, its system graphs included: not counted)."""
+        if graph is None:
+            return sum(self.count(g) for g in self.all_graphs())
+        [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
         return int(row[0].value)
 
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
@@ -424,6 +427,19 @@ class RemoteStore:
                 except SyntaxError as exc:
                     raise RemoteError(f"{self.endpoint.store_url} answered graph {name} with N-Triples that do not "
                                       f"parse (cut short?): {exc}") from None
+
+    def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]:
+        """The quads matching a pattern (None: any term), as the embedded store's method: one
+        SELECT per graph (``graph`` None: every graph :meth:`all_graphs` lists). A blank node
+        cannot be asked for: its label means nothing to the store in another request."""
+        given = {"s": subject, "p": predicate, "o": obj}
+        if any(isinstance(term, ox.BlankNode) for term in given.values()):
+            raise StoreError(f"{self.endpoint} is a remote store: a blank node cannot be looked up by its label")
+        pattern = " ".join(str(term) if term is not None else f"?{name}" for name, term in given.items())
+        names = [ox.NamedNode(_value(graph))] if graph is not None else [ox.NamedNode(g) for g in self.all_graphs()]
+        for name in names:
+            for row in self.query(f"SELECT ?s ?p ?o WHERE {{ GRAPH {name} {{ {pattern} }} }}"):
+                yield ox.Quad(subject or row["s"], predicate or row["p"], obj or row["o"], name)
 
     def local_copy(self, graphs: str | Sequence[str] | None = None) -> Any:
         """An in-memory :class:`GraphStore` holding ``graphs`` (one, several, or every graph): for
@@ -461,14 +477,6 @@ class RemoteStore:
         raise StoreError(f"{self.endpoint} is a remote store: quads with blank nodes cannot be sent to it as they "
                          "are (see Capabilities.blank_node_writes)")
 
-    def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]:
-        """The named graphs' quads that match, in one SELECT request."""
-        given = (subject, predicate, obj, graph)
-        names = ("s", "p", "o", "g")
-        s, p, o, g = (f"?{v}" if t is None else str(t) for t, v in zip(given, names, strict=True))
-        for row in self.query(f"SELECT * WHERE {{ GRAPH {g} {{ {s} {p} {o} }} }}"):
-            yield ox.Quad(*(row[v] if t is None else t for t, v in zip(given, names, strict=True)))
-
 
 def _content(response: Any, timeout: float) -> bytes:
     """The whole body of a streamed ``response``, read within ``timeout`` seconds however slowly
@@ -491,65 +499,6 @@ def _nothing_sent(error: Exception) -> bool:
 
     reason = getattr(error.args[0], "reason", None) if error.args else None
     return isinstance(reason, NewConnectionError) or "NewConnectionError" in str(error)
-
-
-#: what a query's answer must be: "boolean", "graph", or the SELECT's variables
-Expected = str | tuple[str, ...]
-
-
-def _expected(sparql: str, prefixes: dict[str, str] | None, substitutions: dict[Any, Any] | None) -> Expected | None:
-    """What answer ``sparql`` asks for, as Oxigraph parses it (on an empty store, where nothing is
-    found); None for a query with a SERVICE clause (which must not run here). Raises the
-    SyntaxError or RuntimeError the embedded store raises."""
-    if outbound_keyword(sparql) is not None:
-        return None
-    result = ox.Store().query(sparql, prefixes=prefixes, substitutions=substitutions)
-    if isinstance(result, ox.QueryBoolean):
-        return "boolean"
-    if isinstance(result, ox.QueryTriples):
-        return "graph"
-    return tuple(v.value for v in result.variables)
-
-
-def _kind(media_type: str) -> str:
-    """A media type as words for a message."""
-    if media_type in ("text/html", "application/xhtml+xml"):
-        return "an HTML page (a login page or a proxy's error page?)"
-    return media_type or "a body without a Content-Type"
-
-
-def _answer(endpoint: str, content_type: str, content: bytes, expected: Expected | None) -> Any:
-    """A query's answer (pyoxigraph results, or a list of triples), checked against what the
-    query asks for; RemoteError naming ``endpoint`` and what was expected otherwise."""
-    media_type = content_type.split(";")[0].strip().lower()
-    wanted = ("RDF (N-Triples)" if expected == "graph" else "a boolean" if expected == "boolean" else
-              f"SPARQL results with {' '.join('?' + v for v in expected)}" if expected is not None else "SPARQL results")
-    rdf = ox.RdfFormat.from_media_type(media_type)
-    results = {_RESULTS_JSON: ox.QueryResultsFormat.JSON,
-               "application/sparql-results+xml": ox.QueryResultsFormat.XML}.get(media_type)
-    if (expected == "graph" and rdf is None) or (expected != "graph" and results is None and rdf is None):
-        raise RemoteError(f"{endpoint} answered {_kind(media_type)} where {wanted} were expected")
-    try:
-        if rdf is not None:
-            if expected not in (None, "graph"):
-                raise RemoteError(f"{endpoint} answered RDF ({media_type}) where {wanted} were expected")
-            return list(ox.parse(content, rdf))
-        assert results is not None
-        parsed = ox.parse_query_results(content, results)
-        if isinstance(parsed, ox.QuerySolutions):
-            got: Expected = tuple(v.value for v in parsed.variables)
-            parsed.serialize(format=ox.QueryResultsFormat.TSV)  # reads every row: a cut document fails here
-        else:
-            got = "boolean"
-    except SyntaxError as exc:
-        raise RemoteError(f"{endpoint} answered {media_type} that does not parse (cut short?): {exc}") from None
-    if expected is not None and (got == "boolean") != (expected == "boolean"):
-        raise RemoteError(f"{endpoint} answered {'a boolean' if got == 'boolean' else 'rows'} where {wanted} "
-                          f"were expected")
-    if expected is not None and got != "boolean" and set(got) != set(expected):
-        raise RemoteError(f"{endpoint} answered with the variables {' '.join('?' + v for v in got) or '(none)'} "
-                          f"where {wanted} were expected")
-    return ox.parse_query_results(content, results)
 
 
 def open_remote(base: str | None = None, query_url: str | None = None, update_url: str | None = None,
