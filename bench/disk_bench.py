@@ -39,7 +39,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from generate import replicate, write  # noqa: E402
+from generate import program_file  # noqa: E402
 
 TARGET = 20.0
 #: Oxigraph's column families: what each holds
@@ -221,15 +221,7 @@ def main() -> None:
     print(f"machine: {os.cpu_count()} cores; Python {sys.version.split()[0]}")
     for size in args.sizes:
         for program in args.programs:
-            if program == "generated":
-                path = args.data / f"turning_{size}.stp"
-                if not path.exists():
-                    write(size, path)
-            else:
-                path = args.data / (f"real_{size}.stp" if args.real.name == "shaft_two_setups.stp"
-                                    else f"real_{args.real.stem}_{size}.stp")
-                if not path.exists():
-                    replicate(args.real, size, path)
+            path = program_file(args.data, program, size, args.real)
             work = Path(tempfile.mkdtemp(prefix="stepnc-disk-bench-", dir=args.data))
             try:
                 measure(program, path, work)

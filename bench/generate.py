@@ -162,6 +162,20 @@ def replicate(source: Path, n: int, path: Path) -> int:
     return count
 
 
+def program_file(data: Path, program: str, size: int, real: Path) -> Path:
+    """The benchmark program of ``size`` instances under ``data``, written on first use: the
+    ``generated`` one, or copies of the ``real`` program (``replicated``)."""
+    if program == "generated":
+        path = data / f"turning_{size}.stp"
+        if not path.exists():
+            write(size, path)
+        return path
+    path = data / (f"real_{size}.stp" if real.name == "shaft_two_setups.stp" else f"real_{real.stem}_{size}.stp")
+    if not path.exists():
+        replicate(real, size, path)
+    return path
+
+
 if __name__ == "__main__":
     if len(sys.argv) == 4:  # generate.py N OUT SOURCE: replicate a real program
         print(replicate(Path(sys.argv[3]), int(sys.argv[1]), Path(sys.argv[2])))

@@ -40,7 +40,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from generate import replicate, write  # noqa: E402
+from generate import program_file  # noqa: E402
 
 SVG = "{http://www.w3.org/2000/svg}"
 TARGET = 2.0
@@ -121,15 +121,7 @@ def main() -> None:
     verdicts = []
     for size in args.sizes:
         for program in args.programs:
-            if program == "generated":
-                path = args.data / f"turning_{size}.stp"
-                if not path.exists():
-                    write(size, path)
-            else:
-                path = args.data / (f"real_{size}.stp" if args.real.name == "shaft_two_setups.stp"
-                                    else f"real_{args.real.stem}_{size}.stp")
-                if not path.exists():
-                    replicate(args.real, size, path)
+            path = program_file(args.data, program, size, args.real)
             work = Path(tempfile.mkdtemp(prefix="stepnc-plan-bench-", dir=args.data))
             try:
                 store = work / "store"

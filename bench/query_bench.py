@@ -64,7 +64,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from generate import replicate, write  # noqa: E402
+from generate import program_file  # noqa: E402
 
 EXAMPLE = HERE.parent / "examples" / "shaft_two_setups.stp"
 #: A warm-up over this many seconds: the query is timed once instead of ``--repeat`` times.
@@ -401,15 +401,7 @@ def main() -> None:
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}")
     for size in args.sizes:
         for program in args.programs:
-            if program == "generated":
-                path = args.data / f"turning_{size}.stp"
-                if not path.exists():
-                    write(size, path)
-            else:
-                path = args.data / f"real_{size}.stp" if args.real == EXAMPLE else \
-                    args.data / f"real_{args.real.stem}_{size}.stp"
-                if not path.exists():
-                    replicate(args.real, size, path)
+            path = program_file(args.data, program, size, args.real)
             work = Path(tempfile.mkdtemp(prefix="stepnc-query-bench-", dir=args.data))
             try:
                 print(f"\n== {program} program, {size:,} instances ({path.name})", flush=True)
