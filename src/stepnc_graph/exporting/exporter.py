@@ -12,7 +12,8 @@ their place (``_:i12b3``), then the other named subjects sorted.
 from __future__ import annotations
 
 import io
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import IO, cast
 
 import pyoxigraph as ox
 
@@ -101,17 +102,42 @@ def canonical_lines(store: GraphStore, graph: str | None = None, graphs: list[st
         yield from _graph_lines(store, graph, labels, "", quads)
         return
     if graphs is None:
-        db = store.oxigraph
-        yield from sorted(_lines(db.dump(format=ox.RdfFormat.N_TRIPLES, from_graph=ox.DefaultGraph())))
+        default: list[str] = []
+        _dump(store, ox.DefaultGraph(), lambda line: default.append(line + "\n"))
+        yield from sorted(default)
     for k, name in enumerate(graphs if graphs is not None else store.all_graphs(), start=1):
         yield from _graph_lines(store, name, labels, f"g{k}", quads)
 
 
-def _lines(data: bytes | None) -> list[str]:
-    """N-Triples ``data`` as lines, each with its end of line (only ``\\n`` ends one: the
-    other line separators Unicode knows stay unescaped inside literals)."""
-    text = (data or b"").decode("utf-8")
-    return [line + "\n" for line in text.split("\n") if line]
+class _Lines:
+    """A binary sink for Oxigraph's ``dump``: the N-Triples it writes, handed to ``take`` a line
+    at a time (without its end of line) as they come, so the text of a large graph is never held
+    whole. Only ``\\n`` ends a line: the other line separators Unicode knows stay unescaped
+    inside literals."""
+
+    def __init__(self, take: Callable[[str], None]) -> None:
+        self.take = take
+        self.tail = b""
+
+    def write(self, data: bytes) -> int:
+        chunk = self.tail + bytes(data)
+        end = chunk.rfind(b"\n")
+        if end < 0:
+            self.tail = chunk
+            return len(data)
+        self.tail = chunk[end + 1:]
+        for line in chunk[:end].decode("utf-8").split("\n"):
+            if line:
+                self.take(line)
+        return len(data)
+
+    def flush(self) -> None:
+        """Nothing is buffered but a partial line (Oxigraph ends every line)."""
+
+
+def _dump(store: GraphStore, graph: ox.NamedNode | ox.DefaultGraph, take: Callable[[str], None]) -> None:
+    """Each line of ``graph`` as Oxigraph writes it in N-Triples, to ``take``."""
+    store.oxigraph.dump(cast(IO[bytes], _Lines(take)), ox.RdfFormat.N_TRIPLES, from_graph=graph)
 
 
 #: a graph's triples as text: subject -> [(predicate, object)], each term as N-Triples writes it
@@ -119,16 +145,22 @@ _Triples = dict[str, list[tuple[str, str]]]
 
 
 def _read_graph(store: GraphStore, graph: str) -> tuple[_Triples, list[tuple[int, str]]]:
-    """The graph's triples by subject, and its ``p21:id``s as (number, subject)."""
+    """The graph's triples by subject, and its ``p21:id``s as (number, subject); each predicate's
+    text is held once (a large graph's index is most of an export's memory)."""
     triples: _Triples = {}
     numbered: list[tuple[int, str]] = []
+    predicates: dict[str, str] = {}
     id_predicate = f"<{P21_NS}id>"
-    for line in _lines(store.oxigraph.dump(format=ox.RdfFormat.N_TRIPLES, from_graph=ox.NamedNode(graph))):
+
+    def take(line: str) -> None:
         subject, predicate, rest = line.split(" ", 2)
-        obj = rest[:-3]  # " .\n"
+        predicate = predicates.setdefault(predicate, predicate)
+        obj = rest[:-2]  # " ."
         triples.setdefault(subject, []).append((predicate, obj))
         if predicate == id_predicate:
             numbered.append((int(obj[1:obj.index('"', 1)]), subject))
+
+    _dump(store, ox.NamedNode(graph), take)
     numbered.sort()
     return triples, numbered
 
