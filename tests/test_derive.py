@@ -170,6 +170,27 @@ def test_turning_workingstep_features_and_nested_lists(tmp_path: Path) -> None:
     assert [int(x["i"].value) for x in union] == [1, 2]
 
 
+@pytest.mark.parametrize("nested", [False, True])
+def test_list_cells_are_read_with_nested_lists(nested: bool) -> None:
+    """The derived layer reads the cells along each list, and walks into the members only when one
+    is a blank node: a nested list's cells are then found as well (each list indexed from 1)."""
+    from stepnc_graph.loading.derive import Lists, _Reader
+
+    store = sg.open_store(memory=True)
+    inner = "( <http://x/a> <http://x/b> )" if nested else "<http://x/a>"
+    store.add_turtle("http://x/g", f"<http://x/s> <http://x/p> ( {inner} <http://x/c> ) .")
+    lists = Lists.read(_Reader(store, "http://x/g"), ("http://x/p",))
+    assert len(lists.first) == (4 if nested else 2)
+    heads = {q.object for q in store.quads_for_pattern(None, ox.NamedNode("http://x/p"), None)}
+    [head] = heads
+    members = lists.members(head)
+    assert members[1] == ox.NamedNode("http://x/c")
+    if nested:
+        assert lists.members(members[0]) == [ox.NamedNode("http://x/a"), ox.NamedNode("http://x/b")]
+        indexed = sorted(int(q.object.value) for q in lists.index_quads(ox.NamedNode("http://x/d")))
+        assert indexed == [1, 1, 2, 2]
+
+
 def test_rules_cover_what_the_queries_need() -> None:
     rules = iso14649_rules()
     assert f"{STEPNC_NS}workplan.its_elements" in rules.list_properties

@@ -12,8 +12,8 @@ their place (``_:i12b3``), then the other named subjects sorted.
 from __future__ import annotations
 
 import io
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator
+from typing import IO, cast
 
 import pyoxigraph as ox
 
@@ -55,20 +55,26 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
     if fmt == "p21":
         assert graph is not None
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
-    # the canonical order walks the graph node by node: a remote graph is copied here first
+    # the canonical order is read from one dump of each graph: a remote graph is copied here first
     local = store if store.capabilities.local_reads else store.local_copy(graph)
     if chosen.rdf is None:  # JSON-LD, compacted or framed
         return _jsonld(local, graph, fmt == "jsonld-tree")
     prefixes = context(iso14649()[0].naming)
-    return _serialize(getattr(ox.RdfFormat, chosen.rdf), canonical_quads(local, graph), not chosen.quads, prefixes)
+    text = "".join(canonical_lines(local, graph, quads=chosen.quads or graph is None))
+    return _serialize(getattr(ox.RdfFormat, chosen.rdf), text, not chosen.quads, prefixes)
 
 
-def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,
-               prefixes: dict[str, str] | None = None) -> bytes:
-    buffer = io.BytesIO()
+def _serialize(fmt: ox.RdfFormat, text: str, triples: bool, prefixes: dict[str, str] | None = None) -> bytes:
+    """The canonical N-Quads ``text`` as ``fmt``: N-Triples and N-Quads are that text already
+    (Oxigraph's own term syntax, see :func:`canonical_lines`), the others are written by Oxigraph
+    from it, in its order."""
+    if fmt in (ox.RdfFormat.N_TRIPLES, ox.RdfFormat.N_QUADS):
+        return text.encode("utf-8")
+    quads = ox.parse(text.encode("utf-8"), ox.RdfFormat.N_QUADS)
     data: Iterator[ox.Quad] | Iterator[ox.Triple] = (
         (ox.Triple(q.subject, q.predicate, q.object) for q in quads) if triples else quads)
     keep = prefixes if prefixes and fmt in (ox.RdfFormat.TURTLE, ox.RdfFormat.TRIG) else None
+    buffer = io.BytesIO()
     ox.serialize(data, buffer, fmt, prefixes=keep)
     return buffer.getvalue()
 
@@ -81,115 +87,183 @@ def canonical_quads(store: Store, graph: str | None = None,
     A blank node keeps one label across graphs (a derived layer's ``sga:index`` is on the list
     cells of its program graph), so whole-store labels carry the graph's place as well.
     """
+    text = "".join(canonical_lines(store, graph, graphs, quads=True))
+    return iter(ox.parse(text.encode("utf-8"), ox.RdfFormat.N_QUADS))
+
+
+def canonical_lines(store: Store, graph: str | None = None, graphs: list[str] | None = None,
+                    quads: bool = True) -> Iterator[str]:
+    """:func:`canonical_quads` as N-Quads lines (``quads=False``: N-Triples, for one graph).
+
+    Each graph is read in one call, as Oxigraph's N-Triples (one line a triple, terms in the
+    syntax ``str()`` gives them), and ordered here as text: reading it quad by quad, a call into
+    the store for every subject, cost more than the load that wrote it (issue 32).
+    """
     labels = _Labels()
     if graph is not None:
-        yield from _graph_quads(store, graph, labels, "")
+        yield from _graph_lines(store, graph, labels, "", quads)
         return
     if graphs is None:
-        db = store.oxigraph
-        yield from sorted(db.quads_for_pattern(None, None, None, ox.DefaultGraph()), key=str)
+        default: list[str] = []
+        _dump(store, ox.DefaultGraph(), lambda line: default.append(line + "\n"))
+        yield from sorted(default)
     for k, name in enumerate(graphs if graphs is not None else store.all_graphs(), start=1):
-        yield from _graph_quads(store, name, labels, f"g{k}")
+        yield from _graph_lines(store, name, labels, f"g{k}", quads)
+
+
+class _Lines:
+    """A binary sink for Oxigraph's ``dump``: the N-Triples it writes, handed to ``take`` a line
+    at a time (without its end of line) as they come, so the text of a large graph is never held
+    whole. Only ``\\n`` ends a line: the other line separators Unicode knows stay unescaped
+    inside literals."""
+
+    def __init__(self, take: Callable[[str], None]) -> None:
+        self.take = take
+        self.tail = b""
+
+    def write(self, data: bytes) -> int:
+        chunk = self.tail + bytes(data)
+        end = chunk.rfind(b"\n")
+        if end < 0:
+            self.tail = chunk
+            return len(data)
+        self.tail = chunk[end + 1:]
+        for line in chunk[:end].decode("utf-8").split("\n"):
+            if line:
+                self.take(line)
+        return len(data)
+
+    def flush(self) -> None:
+        """Nothing is buffered but a partial line (Oxigraph ends every line)."""
+
+
+def _dump(store: Store, graph: ox.NamedNode | ox.DefaultGraph, take: Callable[[str], None]) -> None:
+    """Each line of ``graph`` as Oxigraph writes it in N-Triples, to ``take``."""
+    store.oxigraph.dump(cast(IO[bytes], _Lines(take)), ox.RdfFormat.N_TRIPLES, from_graph=graph)
+
+
+#: a graph's triples as text: subject -> [(predicate, object)], each term as N-Triples writes it
+_Triples = dict[str, list[tuple[str, str]]]
+
+
+def _read_graph(store: Store, graph: str) -> tuple[_Triples, list[tuple[int, str]]]:
+    """The graph's triples by subject, and its ``p21:id``s as (number, subject); each predicate's
+    text is held once (a large graph's index is most of an export's memory)."""
+    triples: _Triples = {}
+    numbered: list[tuple[int, str]] = []
+    predicates: dict[str, str] = {}
+    id_predicate = f"<{P21_NS}id>"
+
+    def take(line: str) -> None:
+        subject, predicate, rest = line.split(" ", 2)
+        predicate = predicates.setdefault(predicate, predicate)
+        obj = rest[:-2]  # " ."
+        triples.setdefault(subject, []).append((predicate, obj))
+        if predicate == id_predicate:
+            numbered.append((int(obj[1:obj.index('"', 1)]), subject))
+
+    _dump(store, ox.NamedNode(graph), take)
+    numbered.sort()
+    return triples, numbered
 
 
 class _Labels:
-    """Canonical blank node labels: ``<scope><root>b<n>``, one per node for a whole export."""
+    """Canonical blank node labels: ``_:<scope><root>b<n>``, one per node for a whole export."""
 
     def __init__(self) -> None:
-        self.of: dict[ox.BlankNode, ox.BlankNode] = {}
+        self.of: dict[str, str] = {}
         self.used: dict[str, int] = {}
 
-    def label(self, node: object, prefix: str) -> object:
-        if not isinstance(node, ox.BlankNode):
-            return node
-        if node not in self.of:
+    def label(self, term: str, prefix: str) -> str:
+        if not term.startswith("_:"):
+            return term
+        if term not in self.of:
             self.used[prefix] = self.used.get(prefix, 0) + 1
-            self.of[node] = ox.BlankNode(f"{prefix}b{self.used[prefix]}")
-        return self.of[node]
+            self.of[term] = f"_:{prefix}b{self.used[prefix]}"
+        return self.of[term]
 
 
-def _object_key(term: object) -> tuple[int, str]:
-    return (1, "") if isinstance(term, ox.BlankNode) else (0, str(term))
-
-
-def _graph_quads(store: Store, graph: str, labels: _Labels, scope: str) -> Iterator[ox.Quad]:
-    db = store.oxigraph
-    g = ox.NamedNode(graph)
-    numbered = sorted((int(str(q.object.value)), q.subject)  # type: ignore[union-attr]
-                      for q in db.quads_for_pattern(None, ox.NamedNode(P21_NS + "id"), None, g))
-    roots: list[tuple[str, Any]] = [("g", g)] + [(f"i{number}", node) for number, node in numbered]
-    taken = {str(node) for _, node in roots}
-    others = sorted((node for node in _named_subjects(store, graph) if str(node) not in taken), key=str)
+def _graph_lines(store: Store, graph: str, labels: _Labels, scope: str, quads: bool) -> Iterator[str]:
+    """The graph's lines in the canonical order: its own node, its instances by ``#id``, its
+    other named subjects by IRI, each with the blank nodes it reaches; then the blank subjects
+    none reaches."""
+    triples, numbered = _read_graph(store, graph)
+    g = f"<{graph}>"
+    end = f" {g} .\n" if quads else " .\n"
+    roots: list[tuple[str, str]] = [("g", g)] + [(f"i{number}", node) for number, node in numbered]
+    taken = {node for _, node in roots}
+    others = sorted(node for node in triples if node.startswith("<") and node not in taken)
     roots += [(f"n{k}", node) for k, node in enumerate(others, start=1)]
-    seen: set[ox.BlankNode] = set()
+    seen: set[str] = set()
     for prefix, node in roots:
-        yield from _subtree(db, g, scope + prefix, node, seen, labels)
+        yield from _subtree(triples, scope + prefix, node, seen, labels, end)
     # blank subjects no named subject of this graph reaches: the cells a derived layer indexes
     # (labelled in their program graph), or what SPARQL Update added (labelled by content)
-    rest = {q.subject for q in db.quads_for_pattern(None, None, None, g)
-            if isinstance(q.subject, ox.BlankNode) and q.subject not in seen}
-    known = sorted((n for n in rest if n in labels.of), key=lambda n: labels.of[n].value)
-    unknown = sorted((n for n in rest if n not in labels.of), key=lambda n: _deep(db, g, n))
+    rest = {node for node in triples if node.startswith("_:") and node not in seen}
+    known = sorted((n for n in rest if n in labels.of), key=lambda n: labels.of[n])
+    unknown = sorted((n for n in rest if n not in labels.of), key=lambda n: _deep(triples, n))
     for node in known + unknown:
         if node not in seen:
-            yield from _subtree(db, g, scope + "x", node, seen, labels)
+            yield from _subtree(triples, scope + "x", node, seen, labels, end)
 
 
-def _named_subjects(store: Store, graph: str) -> list[ox.NamedNode]:
-    """The named subjects of the graph that are not numbered instances (metadata, aliases, sections)."""
-    rows = store.query(f"SELECT DISTINCT ?s WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o "
-                       f"FILTER(isIRI(?s) && NOT EXISTS {{ ?s <{P21_NS}id> ?i }}) }} }}")
-    return [row[0] for row in rows]
-
-
-def _subtree(db: ox.Store, g: ox.NamedNode, prefix: str, root: ox.NamedNode | ox.BlankNode,
-             seen: set[ox.BlankNode], labels: _Labels) -> Iterator[ox.Quad]:
-    """``root``'s quads sorted, then its blank objects' (depth first), relabelled ``_:<prefix>b<n>``."""
-    if isinstance(root, ox.BlankNode):
+def _subtree(triples: _Triples, prefix: str, root: str, seen: set[str], labels: _Labels,
+             end: str) -> Iterator[str]:
+    """``root``'s triples sorted, then its blank objects' (depth first), relabelled ``_:<prefix>b<n>``."""
+    if root.startswith("_:"):
         seen.add(root)
         labels.label(root, prefix)
-    stack: list[ox.NamedNode | ox.BlankNode] = [root]
+    stack = [root]
     while stack:
         subject = stack.pop()
-        quads = sorted(db.quads_for_pattern(subject, None, None, g),
-                       key=lambda q: (q.predicate.value, _object_key(q.object), _shallow(db, g, q.object)))
+        pairs = triples.get(subject, [])
+        if len(pairs) > 1:
+            pairs = sorted(pairs, key=lambda po: _pair_key(triples, po))
         children = []
-        for q in quads:
-            if isinstance(q.object, ox.BlankNode) and q.object not in seen:
-                seen.add(q.object)
-                labels.label(q.object, prefix)
-                children.append(q.object)
-        for q in quads:
-            yield ox.Quad(labels.label(q.subject, prefix), q.predicate, labels.label(q.object, prefix),  # type: ignore[arg-type]
-                          g)
+        for _, obj in pairs:
+            if obj.startswith("_:") and obj not in seen:
+                seen.add(obj)
+                labels.label(obj, prefix)
+                children.append(obj)
+        label = labels.label(subject, prefix)
+        for predicate, obj in pairs:
+            yield f"{label} {predicate} {labels.label(obj, prefix)}{end}"
         stack.extend(reversed(children))
 
 
-def _deep(db: ox.Store, g: ox.NamedNode, node: ox.BlankNode, limit: int = 500) -> str:
+def _pair_key(triples: _Triples, pair: tuple[str, str]) -> tuple[str, int, str]:
+    """A subject's triples' order: by predicate IRI, then named objects and literals by their
+    text, then blank objects by their own triples (:func:`_shallow`)."""
+    predicate, obj = pair
+    if obj.startswith("_:"):
+        return (predicate[1:-1], 1, _shallow(triples, obj))
+    return (predicate[1:-1], 0, obj)
+
+
+def _deep(triples: _Triples, node: str, limit: int = 500) -> str:
     """A blank node's content down through its blank objects, without labels (up to ``limit``
     nodes): orders the blank subjects no named subject reaches, such as OWL's
     ``[ a owl:AllDisjointClasses ; owl:members (...) ]``."""
     lines: list[str] = []
-    stack: list[tuple[str, ox.BlankNode]] = [("", node)]
+    stack: list[tuple[str, str]] = [("", node)]
     visited = 0
     while stack and visited < limit:
         path, current = stack.pop()
         visited += 1
-        for q in sorted(db.quads_for_pattern(current, None, None, g), key=lambda q: (q.predicate.value, str(q.object))):
-            if isinstance(q.object, ox.BlankNode):
-                stack.append((f"{path}/{q.predicate.value}", q.object))
+        for predicate, obj in sorted(triples.get(current, []), key=lambda po: (po[0][1:-1], po[1])):
+            if obj.startswith("_:"):
+                stack.append((f"{path}/{predicate[1:-1]}", obj))
             else:
-                lines.append(f"{path} {q.predicate} {q.object}")
+                lines.append(f"{path} {predicate} {obj}")
     return "\n".join(sorted(lines))
 
 
-def _shallow(db: ox.Store, g: ox.NamedNode, term: object) -> str:
+def _shallow(triples: _Triples, term: str) -> str:
     """A blank node's own triples without blank labels: orders blank siblings (SET members that
     are typed values) the same way whatever labels Oxigraph gave them."""
-    if not isinstance(term, ox.BlankNode):
+    if not term.startswith("_:"):
         return ""
-    return "\n".join(sorted(f"{q.predicate} {'[]' if isinstance(q.object, ox.BlankNode) else q.object}"
-                            for q in db.quads_for_pattern(term, None, None, g)))
+    return "\n".join(sorted(f"{p} {'[]' if o.startswith('_:') else o}" for p, o in triples.get(term, [])))
 
 
 def _jsonld(store: Store, graph: str | None, tree: bool = False) -> bytes:

@@ -324,12 +324,23 @@ class Lists:
 
     @classmethod
     def read(cls, reader: _Reader, properties: tuple[str, ...]) -> "Lists":
-        """Cells of the lists ``properties`` hold, nested lists included."""
-        # (rest|first)*: the cells of the lists and of lists held by their cells (LIST OF LIST)
+        """Cells of the lists ``properties`` hold, nested lists included.
+
+        The cells along each list (``rdf:rest*``) first; only when a member is a blank node (a
+        nested list, or a typed value) are the members walked into as well, ``(rdf:rest|
+        rdf:first)*``: that path visits every member too, and took twice as long on a program
+        whose process lists hold instances only (0.23 against 0.13 CPU-s for 2,373 cells at
+        10k instances, on the critical path of every load)."""
+        lists = cls._select(reader, properties, f"<{RDF_NS}rest>*")
+        if any(isinstance(member, ox.BlankNode) for member in lists.first.values()):
+            lists = cls._select(reader, properties, f"(<{RDF_NS}rest>|<{RDF_NS}first>)*")
+        return lists
+
+    @classmethod
+    def _select(cls, reader: _Reader, properties: tuple[str, ...], path: str) -> "Lists":
         rows = reader.select(
             f"SELECT ?cell ?first ?rest WHERE {{ VALUES ?p {{ {_values(properties)} }} "
-            f"?s ?p ?head . ?head (<{RDF_NS}rest>|<{RDF_NS}first>)* ?cell . "
-            f"?cell <{RDF_NS}first> ?first ; <{RDF_NS}rest> ?rest }}")
+            f"?s ?p ?head . ?head {path} ?cell . ?cell <{RDF_NS}first> ?first ; <{RDF_NS}rest> ?rest }}")
         lists = cls({}, {})
         for cell, head, tail in rows:
             lists.first[cell] = head
