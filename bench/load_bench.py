@@ -71,6 +71,21 @@ PHASES = [
 ]
 
 
+def switch_off_derived_layer(loader: Any) -> None:
+    """Make the loader module ``loader`` write no derived layer (the load without it, for the
+    layer's cost): ``derive`` does nothing and the mapper gets no layer tables."""
+    class _Nothing:
+        triples = 0
+
+    class _NoTables:
+        @staticmethod
+        def tables() -> None:
+            return None  # the mapper writes no layer lines either
+
+    loader.derive = lambda *args, **kwargs: _Nothing()
+    loader.iso14649_rules = lambda: _NoTables()
+
+
 def _rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
@@ -219,16 +234,7 @@ def child_profile(path: str, store_dir: str, derived: bool, nquads: str | None) 
     if derived:
         loader.derive = clock.wrap(loader.derive, "derive")
     else:
-        class _Nothing:
-            triples = 0
-
-        class _NoTables:
-            @staticmethod
-            def tables() -> None:
-                return None  # the mapper writes no layer lines either
-
-        loader.derive = lambda *args, **kwargs: _Nothing()  # type: ignore[assignment]
-        loader.iso14649_rules = lambda: _NoTables()  # type: ignore[assignment]
+        switch_off_derived_layer(loader)
     with sg.open_store(store_dir) as store:
         started, cpu, main = time.perf_counter(), time.process_time(), time.thread_time()
         [result] = sg.load(store, [path])

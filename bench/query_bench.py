@@ -88,16 +88,9 @@ def child_load(path: str, store_dir: str, derive: str, graph: str | None = None)
     iso14649()
     iso14649_rules()  # the model and rules are built once per process, not per file
     if derive == "off":
-        class _Nothing:
-            triples = 0
+        from load_bench import switch_off_derived_layer
 
-        class _NoTables:
-            @staticmethod
-            def tables() -> None:
-                return None  # the mapper writes no layer lines either
-
-        loader.derive = lambda *args, **kwargs: _Nothing()  # type: ignore[assignment]
-        loader.iso14649_rules = lambda: _NoTables()  # type: ignore[assignment]
+        switch_off_derived_layer(loader)
     with sg.open_store(store_dir) as store:
         started = time.perf_counter()
         ensure_vocabulary(store)  # a store gets it once, with its first load
