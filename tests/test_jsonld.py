@@ -35,7 +35,8 @@ from conftest import FIXTURES, ROOT
 from test_load import assert_round_trip, canonical, unreadable_ids
 
 EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
-PROGRAMS = sorted((FIXTURES / "p21").glob("*.stp")) + [EXAMPLE]
+# the editions fixtures: graphs read in another edition (fdis2001), whole or mixed with 2002 instances
+PROGRAMS = sorted((FIXTURES / "p21").glob("*.stp")) + sorted((FIXTURES / "editions").glob("plate_*.stp")) + [EXAMPLE]
 XSD = "http://www.w3.org/2001/XMLSchema#"
 FORMATS = ("jsonld", "jsonld-tree")
 

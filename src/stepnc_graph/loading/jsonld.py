@@ -51,6 +51,7 @@ import stat
 import time
 from collections import defaultdict
 from collections.abc import Iterator
+from functools import lru_cache
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
@@ -60,6 +61,7 @@ import pyoxigraph as ox
 from stepnc_graph.core.formats import INPUT_FORMATS
 from stepnc_graph.core.version import __version__
 from stepnc_graph.loading.common import DCT, PROV, RDFS, LoadResult, Progress, load_time
+from stepnc_graph.mapping.editions import EDITIONS, edition_plans
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
 from stepnc_graph.core.naming import CONTEXT_IRI, P21_NS, TOOL_IRI, alias_iri, instance_prefix
 from stepnc_graph.part21.diagnostics import Diagnostic
@@ -785,6 +787,12 @@ def _moved(quads: list[ox.Quad], old: str | None, new: str) -> list[ox.Quad]:
     return [ox.Quad(move(q.subject), q.predicate, move(q.object), graph) for q in quads]
 
 
+@lru_cache(maxsize=1)
+def _instance_classes() -> frozenset[str]:
+    """Every class an instance can have: any edition's entity classes, and a raw instance's."""
+    return frozenset(c for e in EDITIONS for c in edition_plans(e).by_class) | {P21_NS + "RawInstance"}
+
+
 class JsonLdLoad:
     """One JSON-LD file's load into the named graph ``source.graph``.
 
@@ -828,13 +836,29 @@ class JsonLdLoad:
         return []
 
     def instances(self, quads: list[ox.Quad]) -> dict[Any, list[str]]:
-        """Instance nodes (a class of the schema, or kept raw) and their types."""
+        """Instance nodes (a class of any edition's schema, or kept raw) and their types.
+
+        A graph read in another edition (``p21:edition``) holds classes the shipped schema does not
+        have; they are instances too, or the count would not match the graph's numbered instances."""
         types: dict[Any, list[str]] = defaultdict(list)
+        known = _instance_classes()
         for t in quads:
-            if t.predicate.value == RDF_TYPE and isinstance(t.object, ox.NamedNode) and (
-                    t.object.value in self.plans.by_class or t.object.value == P21_NS + "RawInstance"):
+            if t.predicate.value == RDF_TYPE and isinstance(t.object, ox.NamedNode) and t.object.value in known:
                 types[t.subject].append(t.object.value)
         return types
+
+    def _plans_of(self, quads: list[ox.Quad]) -> dict[Any, Plans]:
+        """The plans each node was read with: its own ``p21:edition``, else its graph's, else the
+        shipped edition's (:attr:`plans`)."""
+        editions = {t.subject: t.object.value for t in quads
+                    if t.predicate.value == P21_NS + "edition" and isinstance(t.object, ox.Literal)}
+        default = editions.get(ox.NamedNode(self.graph))
+
+        def plans(edition: str | None) -> Plans:
+            return edition_plans(edition) if edition in EDITIONS else self.plans
+
+        shared = plans(default)
+        return defaultdict(lambda: shared, {node: plans(e) for node, e in editions.items()})
 
     def program(self, quads: list[ox.Quad]) -> list[ox.Quad]:
         """The statements kept from the document: all but its load metadata and aliases."""
@@ -855,8 +879,10 @@ class JsonLdLoad:
         for t in program:
             values[(t.subject, t.predicate.value)].append(t.object)
         labels: dict[tuple[str, str], Any] = {}
+        plans_of = self._plans_of(program)
         for node, classes in types.items():
-            plans = [self.plans.by_class[c] for c in classes if c in self.plans.by_class]
+            by_class = plans_of[node].by_class
+            plans = [by_class[c] for c in classes if c in by_class]
             slots = ([p.slots[p.its_id] for p in plans if p.its_id is not None] if len(plans) == 1
                      else [p.own_slots[p.own_its_id] for p in plans if p.own_its_id is not None])
             for slot in slots:
