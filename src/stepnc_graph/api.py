@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING, Any
 from stepnc_graph.loading.loader import LoadResult, Progress, load_source, refuse_graph_name_clashes
 from stepnc_graph.core.naming import P21_NS, GraphNameError
 from stepnc_graph.loading.sources import SourceError, plan_sources, refuse_replacing_other_files
-from stepnc_graph.store import GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path, graph_layout
+from stepnc_graph.store import (GraphStore, Store, StoreBusy, StoreError, Writer, default_store_path, graph_layout,
+                                program_graphs)
 
 if TYPE_CHECKING:
     from stepnc_graph.exporting.exporter import export
@@ -137,12 +138,6 @@ class GraphInfo:
 
 def _int(value: str | None) -> int | None:
     return int(value) if value is not None else None
-
-
-def program_graphs(store: Store) -> list[str]:
-    """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary,
-    derived layers, link graphs or other graphs a user added."""
-    return sorted(graph_layout(store).programs)
 
 
 def info(store: Store) -> list[GraphInfo]:

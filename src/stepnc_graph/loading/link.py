@@ -52,7 +52,7 @@ from stepnc_graph.core.naming import (
     link_graph_iri,
 )
 from stepnc_graph.loading.sources import SourceError, check_iri
-from stepnc_graph.store import GraphStore, Store, graph_layout
+from stepnc_graph.store import GraphStore, Store, graph_layout, program_graphs
 
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
@@ -444,8 +444,6 @@ def program_link_graphs(store: Store, graph: str) -> list[str]:
 
 
 def _only_program(store: Store) -> str:
-    from stepnc_graph.api import program_graphs
-
     graphs = program_graphs(store)
     if len(graphs) != 1:
         raise SourceError(f"the store holds {len(graphs)} programs; choose one with --graph (see "

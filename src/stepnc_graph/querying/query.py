@@ -55,6 +55,8 @@ from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_queries, vocabulary_status
 
+from stepnc_graph.store import program_graphs
+
 if TYPE_CHECKING:
     from stepnc_graph.store import GraphStore
 
@@ -586,8 +588,8 @@ def dataset(store: GraphStore, graph: str | None, library: bool = False) -> dict
     if graph is None:
         if library:
             return {"use_default_graph_as_union": True}
-        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in store.graphs()]}
-    if graph not in store.graphs():
+        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in program_graphs(store)]}
+    if graph not in program_graphs(store):
         raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     return {"default_graph": [ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],
             "named_graphs": [ox.NamedNode(graph)]}
@@ -598,7 +600,7 @@ def _warnings(store: GraphStore, graph: str | None, vocabulary: bool = True) -> 
     status = vocabulary_status(store) if vocabulary else "current"
     if status != "current":
         out.append(f"the store's vocabulary graph is {status}: load a file again to refresh it")
-    graphs = [graph] if graph else store.graphs()
+    graphs = [graph] if graph else program_graphs(store)
     missing = [g for g in graphs if not store.has_graph(derived_graph_iri(g))]
     if missing:
         out.append(f"no derived layer for {', '.join(missing)} (loaded by an older stepnc-graph): load it again")

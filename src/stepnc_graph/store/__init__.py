@@ -1747,6 +1747,13 @@ def graph_layout(store: Store) -> GraphLayout:
     return GraphLayout(frozenset(store.all_graphs()), frozenset(programs), links)
 
 
+def program_graphs(store: Store) -> list[str]:
+    """The graphs of loaded files (``p21:ExchangeStructure``), sorted: not the vocabulary, derived
+    layers, link graphs or graphs a user added. The one answer to "which graphs are programs" for
+    every command that counts, lists or picks programs (the query dataset, its warnings, the plan)."""
+    return sorted(graph_layout(store).programs)
+
+
 def directory_bytes(path: Path) -> int:
     """Bytes the files under ``path`` take on disk, a file hard-linked into several places (the
     store's generations share their SST files) counted once."""

@@ -32,6 +32,7 @@ import pyoxigraph as ox
 
 from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri
 from stepnc_graph.querying.query import PREFIXES
+from stepnc_graph.store import program_graphs
 
 if TYPE_CHECKING:
     import networkx as nx
@@ -355,7 +356,7 @@ def build_plan(store: GraphStore, graph: str | None = None, *, network: bool = T
     from stepnc_graph.graphs.vocabulary_graph import vocabulary_for_queries
 
     vocabulary_for_queries(store)
-    programs = store.graphs()
+    programs = program_graphs(store)
     if graph is None:
         if len(programs) != 1:
             raise PlanError(f"the store holds {len(programs)} programs; choose one with --graph "
