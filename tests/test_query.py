@@ -120,7 +120,7 @@ def test_queries_judged_vocabulary_free_give_the_same_rows_without_it(name: str,
 @pytest.fixture(scope="module")
 def linked_store(store: GraphStore) -> GraphStore:
     """The programs, their derived layers, the vocabulary and a PLM link graph: every kind of graph."""
-    from stepnc_graph.vocabulary import ensure_vocabulary
+    from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary
 
     s = sg.open_store(memory=True)
     s.oxigraph.extend(store.oxigraph.quads_for_pattern(None, None, None, None))
