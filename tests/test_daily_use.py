@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 import stepnc_graph as sg
@@ -50,3 +51,47 @@ def test_cli_query_and_plan_after_link_in_an_on_disk_store(tmp_path: Path) -> No
     assert done.exit_code == 0 and "warning" not in done.stderr, done.stderr
     done = runner.invoke(main, ["plan", *store])
     assert done.exit_code == 0, done.output
+
+
+# -- 2: a mistyped or never-written term warns ------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def shaft() -> GraphStore:
+    store = sg.open_store(memory=True)
+    sg.load(store, [EXAMPLE])
+    return store
+
+
+def test_a_mistyped_class_warns_with_did_you_mean(shaft: GraphStore) -> None:
+    result = sg.query(shaft, "SELECT ?ws WHERE { ?ws a stepnc:workingstepp }")
+    assert len(result) == 0
+    [warning] = result.warnings
+    assert "stepnc:workingstepp is not in the vocabulary" in warning and "stepnc:workingstep" in warning
+
+
+def test_terms_in_full_and_under_declared_prefixes_are_checked(shaft: GraphStore) -> None:
+    text = ("PREFIX s: <https://w3id.org/stepnc-graph/iso14649#> SELECT ?x WHERE { ?x a s:Turning_Workingstep ; "
+            "<https://w3id.org/stepnc-graph/attribute#its_idd> ?id }")
+    warnings = " ".join(sg.query(shaft, text).warnings)
+    assert "stepnc:Turning_Workingstep" in warnings and "stepnc:turning_workingstep" in warnings
+    assert "attr:its_idd" in warnings and "attr:its_id" in warnings
+
+
+def test_correct_terms_strings_and_comments_give_no_warning(shaft: GraphStore) -> None:
+    text = ('SELECT ?ws ?id WHERE { ?ws a stepnc:machining_workingstep ; attr:its_id ?id . ?s sga:executes ?ws '
+            'FILTER(?id != "stepnc:nothing") }  # stepnc:nothing either')
+    result = sg.query(shaft, text)
+    assert len(result) > 0 and result.warnings == []
+
+
+def test_a_generic_property_the_layer_never_writes_names_the_per_entity_one(shaft: GraphStore) -> None:
+    result = sg.query(shaft, "SELECT ?x ?v WHERE { ?x attr:theoretical_size ?v }")
+    [warning] = result.warnings
+    assert "attr:theoretical_size is never written" in warning
+    assert "stepnc:toleranced_length_measure.theoretical_size" in warning
+
+
+def test_cli_prints_the_term_warning(tmp_path: Path) -> None:
+    done = CliRunner().invoke(main, ["query", str(EXAMPLE), "-e", "SELECT ?ws WHERE { ?ws a stepnc:workingstepp }"])
+    assert done.exit_code == 0 and "did you mean stepnc:workingstep" in done.stderr, done.stderr

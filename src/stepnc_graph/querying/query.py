@@ -55,6 +55,7 @@ from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_queries, vocabulary_status
 
+from stepnc_graph.querying.terms import term_warnings
 from stepnc_graph.store import program_graphs
 
 if TYPE_CHECKING:
@@ -653,6 +654,8 @@ def execute(store: GraphStore, query: Query, params: Mapping[str, str] | None = 
                              query.source, declared.line if declared else None, parameter=name) from None
         raise QueryError(f"query failed: {exc}", query.source) from None
     warnings = _warnings(store, graph, vocabulary=query.needs_vocabulary or not is_throwaway(store))
+    if not query.library:  # the library's terms are tested; a user's may be mistyped
+        warnings += term_warnings(store, query.text, PREFIXES, options)
     if isinstance(result, ox.QueryBoolean):
         return QueryResult("ask", boolean=bool(result), warnings=warnings,
                            _json=result.serialize(format=ox.QueryResultsFormat.JSON) or b"")
