@@ -95,3 +95,44 @@ def test_a_generic_property_the_layer_never_writes_names_the_per_entity_one(shaf
 def test_cli_prints_the_term_warning(tmp_path: Path) -> None:
     done = CliRunner().invoke(main, ["query", str(EXAMPLE), "-e", "SELECT ?ws WHERE { ?ws a stepnc:workingstepp }"])
     assert done.exit_code == 0 and "did you mean stepnc:workingstep" in done.stderr, done.stderr
+
+
+# -- 3: SPARQL errors name the cause -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("text", "message", "line", "column"), [
+    ("SELEKT ?x WHERE { ?x ?p ?o }", "found 'SELEKT'; did you mean SELECT?", 1, 1),
+    ("SELECT (COUNT(?x AS ?n) WHERE { ?x ?p ?o }", "'(' opened here is never closed (a ')' is missing)", 1, 8),
+    ("DELETE WHERE { ?x ?p ?o }", "updates are not allowed, queries are read-only", 1, 1),
+    ("PREFIX a: <urn:x#>\nINSERT DATA { a:b a:c a:d }", "INSERT is SPARQL Update: updates are not allowed", 2, 1),
+    ("SELECT ?x WHERE { ?x ?p }", "'}' ends an incomplete triple pattern", 1, 25),
+    ("SELECT ?x WHERE {\n  ?x ?p ?o ;\n     ?q .\n}", "'.' ends an incomplete triple pattern", 3, 9),
+    ('SELECT ?x WHERE { ?x ?p "abc }', "the string opened here with \" is not closed", 1, 25),
+    ("SELECT ?x WHERE { ?x ?p ?o } LIMT 3", "'LIMT' is no SPARQL keyword or function; did you mean LIMIT?", 1, 30),
+    ("SELECT ?x WHERE { ?x ?p ?o ", "the '{' opened here is never closed", 1, 17),
+])
+def test_syntax_errors_name_the_cause(shaft: GraphStore, text: str, message: str, line: int, column: int) -> None:
+    from stepnc_graph.querying.query import QueryError
+
+    with pytest.raises(QueryError) as bad:
+        sg.query(shaft, text)
+    assert message in str(bad.value)
+    assert (bad.value.line, bad.value.column) == (line, column)
+    for noise in ("CONSTRUCT", "GROUP_CONCAT", "<<", "{|", "~", "LATERAL"):
+        assert noise not in str(bad.value).split("\n")[0].replace("CONSTRUCT, ASK", ""), noise
+
+
+def test_valid_queries_with_values_filters_and_blank_nodes_still_run(shaft: GraphStore) -> None:
+    text = ('SELECT ?ws ?id WHERE { VALUES ?c { stepnc:machining_workingstep } ?ws a ?c ; attr:its_id ?id . '
+            'FILTER(STRLEN(?id) > 2) OPTIONAL { ?ws rdfs:label ?l } [] sga:executes ?ws . } ORDER BY ?id LIMIT 3')
+    assert len(sg.query(shaft, text)) == 3
+
+
+def test_query_dash_e_dash_reads_standard_input() -> None:
+    runner = CliRunner()
+    text = "SELECT ?ws WHERE { ?ws a stepnc:machining_workingstep }"
+    for args in (["query", "-"], ["query", "-e", "-"]):
+        done = runner.invoke(main, [*args, str(EXAMPLE), "--format", "csv"], input=text)
+        assert done.exit_code == 0 and done.stdout.count("\n") == 9, (args, done.output)
+    done = runner.invoke(main, ["query", "-e", "-", str(EXAMPLE)], input="SELEKT ?x")
+    assert done.exit_code == 2 and "<stdin>:1:1" in done.stderr, done.stderr

@@ -102,8 +102,8 @@ def open_programs(programs: list[Path], store_path: Path | None, memory: bool, r
 def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, memory: bool, remote: RemoteOptions,
               graph: str | None, params: tuple[str, ...], fmt: str, csv_raw: bool, lenient: bool,
               allow_service: bool) -> None:
-    """Run NAME (a library query), FILE.rq, - (SPARQL on standard input) or -e 'SPARQL' over the store
-    or over FILE.stp programs.
+    """Run NAME (a library query), FILE.rq, - (SPARQL on standard input, also -e -) or -e 'SPARQL'
+    over the store or over FILE.stp programs.
 
     \b
       stepnc-graph query workingsteps-by-tool-type --param tool_type=grooving_tool
@@ -133,7 +133,7 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
         if not p.is_file():
             _fail(f"{p}: no such program file")
     try:
-        if spec == "-" and text is None:
+        if spec == "-":  # `query -` and `query -e -`: the SPARQL text on standard input
             stdin = sys.stdin.read()
             query = Query("-", stdin, "<stdin>", **parse_header(stdin, "<stdin>"))
         else:

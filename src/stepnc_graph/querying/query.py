@@ -55,6 +55,7 @@ from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_queries, vocabulary_status
 
+from stepnc_graph.querying.sparql_errors import explain
 from stepnc_graph.querying.terms import term_warnings
 from stepnc_graph.store import program_graphs
 
@@ -549,30 +550,20 @@ class QueryResult:
 
 
 def _syntax_error(exc: SyntaxError, query: Query) -> QueryError:
-    """A pyoxigraph syntax error as a positioned QueryError (line, column, source line and caret)."""
+    """A pyoxigraph syntax error as a positioned QueryError naming its cause (line, column, source
+    line and caret; :mod:`.sparql_errors` finds the cause)."""
     text = str(exc)
     match = _POSITION.match(text)
     if match is None:
         return QueryError(f"SPARQL syntax error: {text}", query.source)
-    line, column, message = int(match.group(1)), int(match.group(2)), _readable(match.group(3))
-    lines = query.text.splitlines()
-    excerpt = lines[line - 1] if 0 < line <= len(lines) else None
-    return QueryError(f"SPARQL syntax error: {message}", query.source, line, column, excerpt=excerpt)
-
-
-def _readable(message: str) -> str:
-    """Oxigraph's "expected ..." without the character classes it lists (``['A' ..= 'Z' | ...]``)."""
+    cause = explain(query.text, int(match.group(1)), int(match.group(2)), match.group(3))
+    message = cause.message
     if "Prefix not found" in message:
-        return (f"a prefix is not declared (predeclared: {', '.join(p + ':' for p in PREFIXES)}; "
-                "others need PREFIX)")
-    expected = message.removeprefix("expected one of ").removeprefix("expected ")
-    if expected == message:
-        return message
-    words = [w for w in re.split(r",\s*(?=[^,]*(?:$|,))", expected.replace("\n", " "))
-             if w and not w.lstrip().startswith(("[", "|", "'"))]
-    if not words:
-        return "unexpected character here"
-    return f"expected {words[0].strip()}" if len(words) == 1 else f"expected one of {', '.join(w.strip() for w in words)}"
+        message = (f"a prefix is not declared (predeclared: {', '.join(p + ':' for p in PREFIXES)}; "
+                   "others need PREFIX)")
+    lines = query.text.splitlines()
+    excerpt = lines[cause.line - 1] if 0 < cause.line <= len(lines) else None
+    return QueryError(f"SPARQL syntax error: {message}", query.source, cause.line, cause.column, excerpt=excerpt)
 
 
 def dataset(store: GraphStore, graph: str | None, library: bool = False) -> dict[str, Any]:
