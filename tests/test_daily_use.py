@@ -11,7 +11,7 @@ from click.testing import CliRunner
 import stepnc_graph as sg
 from stepnc_graph.cli import main
 from stepnc_graph.core.naming import DATA_BASE
-from stepnc_graph.querying.query import dataset
+from stepnc_graph.querying.query import QueryError, dataset
 from stepnc_graph.store import GraphStore
 from stepnc_graph.workplan.plan import build_plan
 
@@ -37,9 +37,10 @@ def test_a_link_graph_is_not_counted_as_a_program() -> None:
     assert sg.query(store, "tool-changes").warnings == []
     assert sg.query(store, "SELECT * WHERE { ?s ?p ?o } LIMIT 1").warnings == []
     assert build_plan(store).program == SHAFT  # the only program, beside its link graph
-    assert [g.value for g in dataset(store, None)["named_graphs"]] == [SHAFT]
-    rows = sg.query(store, "SELECT DISTINCT ?g WHERE { GRAPH ?g { ?s ?p ?o } }").column("g")
-    assert rows == [SHAFT]
+    link = SHAFT + "/links/shaft_plm_links.csv"
+    assert [g.value for g in dataset(store, None)["named_graphs"]] == [SHAFT, link]  # GRAPH ?links reaches it
+    with pytest.raises(QueryError, match="no loaded file with graph"):
+        sg.query(store, "tool-changes", graph=link)  # --graph picks a program: its graph and its derived layer
 
 
 def test_cli_query_and_plan_after_link_in_an_on_disk_store(tmp_path: Path) -> None:
@@ -112,8 +113,6 @@ def test_cli_prints_the_term_warning(tmp_path: Path) -> None:
     ("SELECT ?x WHERE { ?x ?p ?o ", "the '{' opened here is never closed", 1, 17),
 ])
 def test_syntax_errors_name_the_cause(shaft: GraphStore, text: str, message: str, line: int, column: int) -> None:
-    from stepnc_graph.querying.query import QueryError
-
     with pytest.raises(QueryError) as bad:
         sg.query(shaft, text)
     assert message in str(bad.value)
@@ -136,3 +135,54 @@ def test_query_dash_e_dash_reads_standard_input() -> None:
         assert done.exit_code == 0 and done.stdout.count("\n") == 9, (args, done.output)
     done = runner.invoke(main, ["query", "-e", "-", str(EXAMPLE)], input="SELEKT ?x")
     assert done.exit_code == 2 and "<stdin>:1:1" in done.stderr, done.stderr
+
+
+@pytest.mark.xfail(strict=True, reason="store/remote.py sends a union default graph without named graphs, so a "
+                   "library query's GRAPH ?g matches nothing over an endpoint (not this branch's area; reported)")
+def test_a_library_query_over_an_endpoint_gives_the_embedded_rows(tmp_path: Path) -> None:
+    from oxigraph_server import OxigraphServer, ServerUnavailable
+
+    server = OxigraphServer(tmp_path / "server")
+    try:
+        server.start()
+    except ServerUnavailable as exc:
+        pytest.skip(str(exc))
+    try:
+        done = CliRunner().invoke(main, ["load", "--endpoint", server.url, str(EXAMPLE)])
+        assert done.exit_code == 0, done.output
+        done = CliRunner().invoke(main, ["query", "tool-changes", "--endpoint", server.url, "--format", "csv"])
+    finally:
+        server.stop()
+    assert done.exit_code == 0 and "T02 GROOVING 3MM" in done.stdout, done.output
+
+
+# -- 5: documented examples that failed as written -------------------------------------------------
+
+
+def test_graph_of_the_vocabulary_warns_instead_of_answering_nothing(shaft: GraphStore) -> None:
+    old = ("SELECT ?p ?name WHERE { GRAPH <https://w3id.org/stepnc-graph/iso14649> { ?p rdfs:domain "
+           "stepnc:turning_technology ; rdfs:label ?name } }")  # docs/querying.md query 8 as it was
+    result = sg.query(shaft, old)
+    assert len(result) == 0
+    [warning] = result.warnings
+    assert "GRAPH <https://w3id.org/stepnc-graph/iso14649> matches nothing" in warning and "leave out" in warning
+    assert sg.query(shaft, f"SELECT * WHERE {{ GRAPH <{SHAFT}> {{ ?s ?p ?o }} }} LIMIT 1").warnings == []
+
+
+def test_the_plan_is_part_of_the_api() -> None:
+    store = sg.open_store(memory=True)
+    sg.load(store, [EXAMPLE])
+    plan = sg.build_plan(store)
+    assert isinstance(plan, sg.Plan) and len(plan.tool_changes()) == 2
+
+
+def test_the_generator_explains_itself(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    script = str(ROOT / "bench" / "generate.py")
+    done = subprocess.run([sys.executable, script, "--help"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and "usage:" in done.stdout and "SOURCE" in done.stdout, done.stderr
+    done = subprocess.run([sys.executable, script, "many", str(tmp_path / "x.stp")], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 2 and "Traceback" not in done.stderr and "invalid int value" in done.stderr

@@ -567,8 +567,8 @@ def _syntax_error(exc: SyntaxError, query: Query) -> QueryError:
 
 
 def dataset(store: GraphStore, graph: str | None, library: bool = False) -> dict[str, Any]:
-    """The query dataset: every graph as default graph and the files' graphs for GRAPH ?program,
-    or one file's graph, its derived layer and the vocabulary.
+    """The query dataset: every graph as default graph and the graphs a user names (programs, link
+    graphs) for GRAPH ?g, or one program's graph, its derived layer and the vocabulary.
 
     A ``library`` query over the whole store gets the store's own named graphs instead. Oxigraph evaluates a ``GRAPH ?g`` pattern over a
     list of named graphs one graph after the other -- a look-up per listed graph and row, so a
@@ -580,7 +580,7 @@ def dataset(store: GraphStore, graph: str | None, library: bool = False) -> dict
     if graph is None:
         if library:
             return {"use_default_graph_as_union": True}
-        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in program_graphs(store)]}
+        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in store.graphs()]}
     if graph not in program_graphs(store):
         raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     return {"default_graph": [ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],

@@ -116,15 +116,42 @@ def _unused_generic(store: Store, term: str, dataset: Mapping[str, Any]) -> str 
             f"query {listed or 'the per-entity properties'} instead")
 
 
+_GRAPH = re.compile(r"\bGRAPH\s*<([^<>\s]*)>", re.IGNORECASE)
+
+
+def graph_warnings(text: str, dataset: Mapping[str, Any]) -> list[str]:
+    """``GRAPH <iri>`` for a graph the query's named graphs do not hold matches nothing: the
+    vocabulary graph and the derived layers are part of the default graph, not named graphs."""
+    named = {g.value for g in dataset.get("named_graphs", ())}
+    if "named_graphs" not in dataset:
+        return []
+    out = []
+    for iri in dict.fromkeys(_GRAPH.findall(_strip(text))):
+        if iri not in named:
+            what = "the vocabulary graph" if iri == VOCABULARY_GRAPH else "this graph"
+            out.append(f"GRAPH <{iri}> matches nothing: {what} is not one of the query's named graphs (the loaded "
+                       "programs and link graphs); the vocabulary and the derived layers are in the default graph, "
+                       "so leave out the GRAPH")
+    return out
+
+
+def _strip(text: str) -> str:
+    """``text`` without its strings and comments."""
+    return "".join(m.group() if not m.group("skip") else " " for m in re.finditer(rf"{_TOKEN.pattern}|[\s\S]", text,
+                                                                                   re.IGNORECASE))
+
+
 def term_warnings(store: Store, text: str, prefixes: Mapping[str, str], dataset: Mapping[str, Any]) -> list[str]:
     """Warnings for the ``stepnc:``/``attr:``/``sga:`` terms of the query ``text`` that the store's
-    vocabulary graph does not have ("did you mean"), or generic properties the queried data never
-    uses. Nothing when the store has no vocabulary graph to look in."""
+    vocabulary graph does not have ("did you mean"), generic properties the queried data never
+    uses, and GRAPH patterns naming a graph outside the dataset. Nothing about terms when the store
+    has no vocabulary graph to look in."""
+    graphs = graph_warnings(text, dataset)
     terms = named_terms(text, prefixes)
     if not terms or not store.has_graph(VOCABULARY_GRAPH):
-        return []
+        return graphs
     has = _vocabulary_has(store, terms)
-    out: list[str] = []
+    out: list[str] = graphs
     names: list[str] | None = None
     for term in terms:
         if term in has:
