@@ -186,3 +186,23 @@ def test_the_generator_explains_itself(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, script, "many", str(tmp_path / "x.stp")], capture_output=True, text=True,
                           timeout=60)
     assert done.returncode == 2 and "Traceback" not in done.stderr and "invalid int value" in done.stderr
+
+
+# -- 6: export without --graph: one rule for every format ------------------------------------------
+
+
+def test_export_without_graph_writes_the_same_graphs_in_every_format() -> None:
+    import json
+
+    import pyoxigraph as ox
+
+    store = linked()
+    link = SHAFT + "/links/shaft_plm_links.csv"
+    for fmt, rdf in (("nq", ox.RdfFormat.N_QUADS), ("trig", ox.RdfFormat.TRIG)):
+        graphs = {q.graph_name.value for q in ox.parse(sg.export(store, fmt), rdf)}
+        assert graphs == {SHAFT, link}, fmt
+    document = json.loads(sg.export(store, "jsonld"))
+    assert {g["@id"] for g in document["@graph"]} == {SHAFT, link}
+    assert sg.export(store, "ttl") == sg.export(store, "ttl", SHAFT)  # the one program, beside its link graph
+    derived = {q.graph_name.value for q in ox.parse(sg.export(store, "nq", SHAFT + "/derived"), ox.RdfFormat.N_QUADS)}
+    assert derived == {SHAFT + "/derived"}  # a layer on request

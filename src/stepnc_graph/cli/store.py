@@ -179,8 +179,9 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @click.command("export")
 @store_option
 @with_endpoint
-@click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
-                                            "or the only one.")
+@click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`). Default: the loaded "
+                                            "graphs -- programs and link graphs, not the vocabulary or derived "
+                                            "layers -- for nq, trig and jsonld; the only program for ttl, nt, p21.")
 @click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21"]),
               required=True, help="p21 writes the graph back as a Part 21 file; jsonld-tree frames a program as a "
                                   "tree (project, workplans, workingsteps, operation, tool, feature).")
@@ -189,9 +190,13 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @reports_errors
 def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None, fmt: str,
                output: Path | None) -> None:
-    """Export one graph or the whole store as RDF or as Part 21.
+    """Export one graph or the store's loaded graphs as RDF or as Part 21.
 
-    Exports are deterministic: the same graph gives the same bytes. Exit 2 for
+    Without --graph every format exports the same graphs: the programs, their
+    link graphs and graphs you added -- never the vocabulary graph or the
+    derived layers, which a load writes again (name one with --graph to export
+    it). ttl, nt and p21 hold one graph: without --graph the store must hold one
+    program. Exports are deterministic: the same graph gives the same bytes. Exit 2 for
     a graph that is not in the store or an output that cannot be written.
     """
     from stepnc_graph.exporting.exporter import export

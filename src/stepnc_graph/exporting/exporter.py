@@ -22,7 +22,7 @@ from stepnc_graph.mapping.plans import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
 from stepnc_graph.core.naming import P21_NS
 from stepnc_graph.schema.catalog import iso14649
-from stepnc_graph.store import GraphStore, Store
+from stepnc_graph.store import GraphStore, Store, program_graphs
 
 FORMATS = ("ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21")
 _OX = {"ttl": ox.RdfFormat.TURTLE, "nt": ox.RdfFormat.N_TRIPLES, "nq": ox.RdfFormat.N_QUADS,
@@ -35,30 +35,34 @@ class ExportError(ValueError):
 
 
 def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
-    """Serialise one graph (``graph``) or the whole store (``None``) as ``fmt``.
+    """Serialise one graph (``graph``) or the store's loaded graphs (``None``) as ``fmt``.
 
-    Triple formats (ttl, nt, jsonld of one graph, p21) need a graph unless the
-    store holds exactly one; nq and trig keep graph names.
+    One rule for every format: without ``graph`` an export holds the graphs a user names -- the
+    programs, their link graphs and graphs users added (:meth:`GraphStore.graphs`) -- never the
+    vocabulary graph or the derived layers, which a load writes again (name one with ``graph``
+    to export it). Triple formats (ttl, nt, p21) hold one graph, so without ``graph`` they need a
+    store of one program (that program's graph); nq, trig and jsonld keep graph names.
     """
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
     if graph is not None and not store.has_graph(graph):
         raise ExportError(f"no graph {graph} in the store")
     if graph is None and fmt in ("ttl", "nt", "p21"):
-        graphs = store.graphs()
-        if len(graphs) != 1:
-            raise ExportError(f"--format {fmt} writes one graph and the store has {len(graphs)}; choose one with "
-                              f"--graph (see `stepnc-graph info`) or use nq/trig")
-        graph = graphs[0]
+        programs = program_graphs(store)
+        if len(programs) != 1:
+            raise ExportError(f"--format {fmt} writes one graph and the store holds {len(programs)} programs; choose "
+                              "one with --graph (see `stepnc-graph info`) or use nq, trig or jsonld")
+        graph = programs[0]
     if fmt == "p21":
         assert graph is not None
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
+    graphs = None if graph is not None else store.graphs()
     # the canonical order walks the graph node by node: a remote graph is copied here first
-    local = store if isinstance(store, GraphStore) else store.local_copy(graph)  # type: ignore[attr-defined]
+    local = store if isinstance(store, GraphStore) else store.local_copy(graph or graphs)  # type: ignore[attr-defined]
     if fmt in ("jsonld", "jsonld-tree"):
-        return _jsonld(local, graph, fmt == "jsonld-tree")
+        return _jsonld(local, graph, graphs, fmt == "jsonld-tree")
     prefixes = context(iso14649()[0].naming)
-    return _serialize(_OX[fmt], canonical_quads(local, graph), fmt not in QUAD_FORMATS, prefixes)
+    return _serialize(_OX[fmt], canonical_quads(local, graph, graphs), fmt not in QUAD_FORMATS, prefixes)
 
 
 def _serialize(fmt: ox.RdfFormat, quads: Iterator[ox.Quad], triples: bool,
@@ -190,10 +194,9 @@ def _shallow(db: ox.Store, g: ox.NamedNode, term: object) -> str:
                             for q in db.quads_for_pattern(term, None, None, g)))
 
 
-def _jsonld(store: GraphStore, graph: str | None, tree: bool = False) -> bytes:
+def _jsonld(store: GraphStore, graph: str | None, graphs: list[str] | None, tree: bool = False) -> bytes:
     """JSON-LD compacted with the generated context (``tree``: a readable, framed tree); see
     :mod:`stepnc_graph.exporting.jsonld`."""
     from stepnc_graph.exporting.jsonld import export_jsonld
 
-    # a JSON-LD document of the store is its programs (and links), what a PLM system takes
-    return export_jsonld(canonical_quads(store, graph, None if graph else store.graphs()), graph, tree)
+    return export_jsonld(canonical_quads(store, graph, graphs), graph, tree)
