@@ -206,3 +206,48 @@ def test_export_without_graph_writes_the_same_graphs_in_every_format() -> None:
     assert sg.export(store, "ttl") == sg.export(store, "ttl", SHAFT)  # the one program, beside its link graph
     derived = {q.graph_name.value for q in ox.parse(sg.export(store, "nq", SHAFT + "/derived"), ox.RdfFormat.N_QUADS)}
     assert derived == {SHAFT + "/derived"}  # a layer on request
+
+
+# -- 7: feedback on long work, output people read --------------------------------------------------
+
+
+DAMAGED = ROOT / "examples" / "shaft_damaged.stp"
+
+
+def test_validate_summarises_by_rule_and_limits_the_listing() -> None:
+    import json
+
+    done = CliRunner().invoke(main, ["validate", str(DAMAGED), "--max-results", "3"])
+    assert done.exit_code == 1
+    lines = done.stdout.splitlines()
+    assert sum(line.startswith("  line ") for line in lines) == 3
+    assert "... 13 more result(s) not listed (--max-results 3)" in done.stdout
+    summary = lines[lines.index("16 result(s) by rule:") + 1:]
+    assert summary[0].split()[:2] == ["5", "violation"] and "P21-UNRESOLVED-REF" in summary[0]
+    assert sum(int(line.split()[0]) for line in summary) == 16
+    done = CliRunner().invoke(main, ["validate", "--format", "json", "--max-results", "1", str(DAMAGED)])
+    report = json.loads(done.stdout)
+    assert len(report["results"]) == 1 and report["omitted"] == 15 and report["counts"]["Violation"] == 16
+    assert report["by_rule"][0]["count"] == 5 and done.stdout.endswith("}\n")
+
+
+def test_validate_tells_its_phases() -> None:
+    from stepnc_graph.validation import validate
+
+    heard: list[str] = []
+    validate([EXAMPLE], progress=heard.append)
+    kinds = [h.split()[0] for h in heard]
+    assert {"loading", "checking", "describing"} <= set(kinds)
+    assert kinds.index("loading") < kinds.index("checking") < kinds.index("describing")
+    assert any(h.endswith("100 %") for h in heard if h.startswith("loading"))
+
+
+def test_load_summary_uses_thousands_separators_and_gives_the_rate(tmp_path: Path) -> None:
+    from generate import write  # type: ignore[import-not-found]
+
+    program = tmp_path / "big.stp"
+    count = write(2500, program)
+    done = CliRunner().invoke(main, ["load", "--memory", str(program)])
+    assert done.exit_code == 0, done.output
+    assert f"{count:,} instances" in done.stdout and "instances/s)" in done.stdout
+    assert f" {count} instances" not in done.stdout

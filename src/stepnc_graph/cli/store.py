@@ -101,8 +101,9 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
         done = 0
         for source, size in zip(sources, sizes, strict=True):
             def advance(position: int, total: int, base: int = done, size: int = size,
-                        label: str = f"loading {escape(Path(source.name).name)}") -> None:
-                if bar is not None and task is not None:
+                        name: str = escape(Path(source.name).name)) -> None:
+                if bar is not None and task is not None:  # once read, the derived layer and publishing remain
+                    label = f"loading {name}" if position < total else f"{name}: derived layer, publishing"
                     bar.update(task, completed=base + position * size // max(total, 1), description=label)
 
             try:
@@ -116,6 +117,11 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
                     print_error(exc, hint)
             done += size
     return results, failures
+
+
+def _n(count: int | None) -> str:
+    """A count with thousands separators (``?`` when the load did not record it)."""
+    return "?" if count is None else f"{count:,}"
 
 
 def _size(source: Source) -> int:
@@ -157,9 +163,11 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
     else:
         for r in results:
             errors = sum(d.severity == "error" for d in r.diagnostics)
-            raw = f" ({r.raw} kept raw{f', {r.unreadable} unreadable' if r.unreadable else ''})"
-            out.print(f"loaded {escape(r.path)} -> {escape(r.graph)}\n  {r.instances} instances{raw}, "
-                      f"{r.triples} triples, {len(r.diagnostics)} diagnostics ({errors} errors) in {r.seconds:.2f} s")
+            raw = f" ({r.raw:,} kept raw{f', {r.unreadable:,} unreadable' if r.unreadable else ''})"
+            rate = f" ({r.instances / r.seconds:,.0f} instances/s)" if r.seconds > 0 and r.instances >= 1000 else ""
+            out.print(f"loaded {escape(r.path)} -> {escape(r.graph)}\n  {r.instances:,} instances{raw}, "
+                      f"{r.triples:,} triples, {len(r.diagnostics):,} diagnostics ({errors:,} errors) in "
+                      f"{r.seconds:.2f} s{rate}")
             for d in r.diagnostics:
                 ident = f" #{d.p21_id}" if d.p21_id is not None else ""
                 out.print(f"  [{_COLOURS.get(d.severity, 'blue')}]{d.severity}[/] {d.line}:{d.column}{ident} "
@@ -351,5 +359,6 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
                   f"(`unload --compact`, `compact`, or an unload once they reach a third of the store)")
     for r in rows:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
-        out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
-                  f"({r.raw_instances} raw), {r.triples} triples, {r.diagnostics} diagnostics; loaded {r.loaded}")
+        out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {_n(r.instances)} instances "
+                  f"({_n(r.raw_instances)} raw), {_n(r.triples)} triples, {_n(r.diagnostics)} diagnostics; "
+                  f"loaded {r.loaded}")

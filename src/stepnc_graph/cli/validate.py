@@ -4,6 +4,9 @@ rules and your own."""
 from __future__ import annotations
 
 import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -14,11 +17,27 @@ from stepnc_graph.cli.common import (
     RemoteOptions,
     UsageProblem,
     err,
+    escape,
+    is_terminal,
     open_reader,
     reports_errors,
     with_endpoint,
     write_out,
 )
+
+
+@contextmanager
+def phases() -> Iterator[Callable[[str], None] | None]:
+    """On a terminal, a transient status line on stderr naming the phase a long validation is in,
+    with the seconds since it began; elsewhere nothing (None)."""
+    if not is_terminal(err.file):
+        yield None
+        return
+    started = time.monotonic()
+    with err.status("validating", spinner="dots") as status:
+        def show(text: str) -> None:
+            status.update(f"{escape(text)}  [dim]{time.monotonic() - started:,.0f} s[/]")
+        yield show
 
 
 @click.command("validate")
@@ -41,10 +60,12 @@ from stepnc_graph.cli.common import (
 @click.option("--allow-service", is_flag=True,
               help="Let SERVICE clauses in the shapes' SPARQL send requests to the servers they name (refused "
                    "otherwise). Prints a warning.")
+@click.option("--max-results", type=click.IntRange(min=0), default=None, metavar="N",
+              help="List at most N results (text and json; the counts and the summary by rule cover all).")
 @reports_errors
 def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: RemoteOptions, graphs: tuple[str, ...],
                  fmt: str, severity: str, extra: tuple[Path, ...], strict: bool, no_iso: bool,
-                 allow_service: bool) -> None:
+                 allow_service: bool, max_results: int | None) -> None:
     """Check FILES (loaded into a throw-away store) or a store's graphs.
 
     FILES are Part 21 programs (.stp, .step, .p21), JSON-LD program graphs
@@ -54,6 +75,9 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     the rule and its ISO clause. Problems the loader finds (unknown entity,
     wrong parameter count or type, unresolved reference, recovered syntax, an
     ill-typed literal) are results too.
+
+    The text report ends with how many results each rule gave; on a terminal
+    each phase (loading, checking, describing) shows while it runs.
 
     The Turtle and JSON reports carry SHACL's sh:conforms (false when there is
     any result). Exit codes: 0 no violation (warnings and infos do not fail),
@@ -73,15 +97,18 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         err.print("[yellow]warning:[/] --allow-service: SERVICE clauses in the shapes send requests to the servers "
                   "they name", markup=True, highlight=False)
     try:
-        if in_store:
-            with open_reader(store_path, remote) as store:
-                report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity,
-                                  iso_shapes=not no_iso, allow_service=allow_service)
-        else:
-            report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
-                              iso_shapes=not no_iso, allow_service=allow_service)
+        with phases() as progress:
+            if in_store:
+                with open_reader(store_path, remote) as store:
+                    report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra),
+                                      severity=severity, iso_shapes=not no_iso, allow_service=allow_service,
+                                      progress=progress)
+            else:
+                report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
+                                  iso_shapes=not no_iso, allow_service=allow_service, progress=progress)
     except (ShapesError, ValueError) as exc:
         raise UsageProblem(str(exc)) from None
-    text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
+    text = (report.to_turtle() if fmt == "turtle" else report.to_json(max_results) if fmt == "json"
+            else report.to_text(max_results))
     write_out(text, uchar=fmt != "text")
     sys.exit(EXIT_OK if report.passes else EXIT_NONCONFORMING)
