@@ -251,3 +251,39 @@ def test_load_summary_uses_thousands_separators_and_gives_the_rate(tmp_path: Pat
     assert done.exit_code == 0, done.output
     assert f"{count:,} instances" in done.stdout and "instances/s)" in done.stdout
     assert f" {count} instances" not in done.stdout
+
+
+# -- 9: --graph and unload take a unique end of a graph IRI, and suggest on a miss ------------------
+
+
+def test_a_graph_is_named_by_a_unique_end_of_its_iri() -> None:
+    from stepnc_graph.graphs.names import UnknownGraph, resolve_graph
+
+    graphs = [SHAFT, SHAFT + "/links/shaft_plm_links.csv", DATA_BASE + "sleeve.stp", "https://example.org/a/sleeve.stp"]
+    assert resolve_graph("shaft_two_setups.stp", graphs) == SHAFT
+    assert resolve_graph("data/shaft_two_setups.stp", graphs) == SHAFT
+    assert resolve_graph("shaft_two_setups", graphs) == SHAFT  # the file name without its extension
+    assert resolve_graph("shaft_plm_links.csv", graphs) == SHAFT + "/links/shaft_plm_links.csv"
+    with pytest.raises(UnknownGraph, match="names 2 graphs"):
+        resolve_graph("sleeve.stp", graphs)
+    assert resolve_graph("a/sleeve.stp", graphs) == "https://example.org/a/sleeve.stp"
+    with pytest.raises(UnknownGraph, match=f"did you mean {SHAFT}"):
+        resolve_graph("shaft_two_setup.stp", graphs)
+    with pytest.raises(UnknownGraph, match="setups.stp"):
+        resolve_graph("setups.stp", graphs)  # not at a '/': no match, but a suggestion
+
+
+def test_cli_commands_take_a_file_name_for_the_graph(tmp_path: Path) -> None:
+    store = ["--store", str(tmp_path / "store")]
+    runner = CliRunner()
+    assert runner.invoke(main, ["load", *store, "--lenient", str(EXAMPLE), str(DAMAGED)]).exit_code == 1
+    done = runner.invoke(main, ["export", *store, "--format", "nt", "--graph", "shaft_two_setups.stp"])
+    assert done.exit_code == 0 and done.stdout.startswith(f"<{SHAFT}>"), done.output
+    done = runner.invoke(main, ["query", *store, "tool-changes", "--graph", "shaft_two_setups.stp", "--format", "csv"])
+    assert done.exit_code == 0 and "T02 GROOVING 3MM" in done.stdout, done.output
+    done = runner.invoke(main, ["plan", *store, "--graph", "shaft_two_setups"])
+    assert done.exit_code == 0 and "8 workingsteps" in done.stdout, done.output
+    done = runner.invoke(main, ["unload", *store, "shaft_damage.stp"])
+    assert done.exit_code == 2 and "did you mean https://w3id.org/stepnc-graph/data/shaft_damaged.stp" in done.stderr
+    done = runner.invoke(main, ["unload", *store, "shaft_damaged.stp"])
+    assert done.exit_code == 0 and "removed: https://w3id.org/stepnc-graph/data/shaft_damaged.stp" in done.stdout

@@ -374,3 +374,20 @@ class Group(click.Group):
         except KeyboardInterrupt:
             err.print("interrupted")
             sys.exit(EXIT_INTERRUPTED)
+
+
+def pick_graph(store: Store, given: str) -> str:
+    """The graph of ``store`` that ``--graph``/``unload`` ``given`` names: a graph's full IRI, or a
+    unique end of one (a file name; see :mod:`stepnc_graph.graphs.names`). A miss or an ambiguous
+    name is a UsageProblem that lists what it could mean."""
+    from stepnc_graph.graphs.names import UnknownGraph, resolve_graph
+
+    try:
+        if store.has_graph(given):  # any graph by its IRI: a derived layer, the vocabulary graph too
+            return given
+    except ValueError:
+        pass  # not an IRI: a file name
+    try:
+        return resolve_graph(given, store.graphs())
+    except UnknownGraph as exc:
+        raise UsageProblem(str(exc)) from None

@@ -17,6 +17,7 @@ from stepnc_graph.cli.common import (
     escape,
     open_writer,
     out,
+    pick_graph,
     reports_errors,
     store_option,
     wait_option,
@@ -51,14 +52,11 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bo
     (--allow-unknown; they are listed); 2 rows matched no single entity (none
     linked, they are listed), or bad input or usage.
     """
-    from stepnc_graph.loading.sources import check_iri
-
-    if graph is not None:
-        check_iri(graph, "--graph")
     from stepnc_graph.loading.link import link
 
     with open_writer(store_path, wait=wait, create=False) as store:
-        result = link(store, mapping, graph, allow_unknown=allow_unknown, replace=replace)
+        result = link(store, mapping, pick_graph(store, graph) if graph is not None else None,
+                      allow_unknown=allow_unknown, replace=replace)
     if fmt == "json":
         click.echo(json.dumps(result.asdict(), indent=2))
     else:

@@ -14,6 +14,7 @@ from stepnc_graph.cli.common import (
     err,
     escape,
     out,
+    pick_graph,
     reports_errors,
     with_endpoint,
     with_store,
@@ -62,7 +63,8 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     with open_programs([program] if program is not None else [], store_path, memory, remote, lenient) as store:
         try:
             # the networkx graph only for what shows it (GraphML, the JSON summary's counts)
-            plan = build_plan(store, graph, network=bool(graphml) or fmt == "json")
+            picked = pick_graph(store, graph) if graph is not None else None
+            plan = build_plan(store, picked, network=bool(graphml) or fmt == "json")
         except PlanError as exc:
             _fail(str(exc))
     try:

@@ -18,6 +18,7 @@ from stepnc_graph.cli.common import (
     is_terminal,
     open_reader,
     out,
+    pick_graph,
     reports_errors,
     safe_cell,
     with_endpoint,
@@ -146,7 +147,8 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
                   markup=True, highlight=False)
     with open_programs(programs, store_path, memory, remote, lenient) as store:
         try:
-            result = execute(store, query, _params(params), graph, allow_service=allow_service)
+            picked = pick_graph(store, graph) if graph is not None else None
+            result = execute(store, query, _params(params), picked, allow_service=allow_service)
         except QueryError as exc:
             _fail(str(exc))
     for warning in result.warnings:

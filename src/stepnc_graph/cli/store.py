@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import click
 
 from stepnc_graph.cli.common import (
+    pick_graph,
     EXIT_BAD_INPUT,
     EXIT_NONCONFORMING,
     EXIT_OK,
@@ -177,13 +178,6 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
     sys.exit(EXIT_NONCONFORMING if any(r.diagnostics for r in results) else EXIT_OK)
 
 
-def _check_graph(graph: str | None, what: str = "--graph") -> None:
-    if graph is not None:
-        from stepnc_graph.loading.sources import check_iri
-
-        check_iri(graph, what)
-
-
 @click.command("export")
 @store_option
 @with_endpoint
@@ -209,11 +203,10 @@ def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None
     """
     from stepnc_graph.exporting.exporter import export
 
-    _check_graph(graph)
     if output is not None and not output.parent.is_dir():
         raise UsageProblem(f"-o {output}: the directory {output.parent} does not exist")
     with open_reader(store_path, remote) as store:
-        data = export(store, fmt, graph)
+        data = export(store, fmt, pick_graph(store, graph) if graph is not None else None)
     if output is None:
         try:
             write_out(data, uchar=fmt != "p21")
@@ -255,7 +248,8 @@ def _write_output(output: Path, data: bytes) -> None:
 @reports_errors
 def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteOptions, wait: bool,
                compact: bool) -> None:
-    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`).
+    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`, or a unique end
+    of one: the file name, shaft.stp).
 
     A program goes with its derived layer and its link graphs; a link graph
     (<program>/links/<name>) goes alone. The vocabulary graph and a derived
@@ -270,20 +264,24 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
     from stepnc_graph.api import unload
     from stepnc_graph.core.naming import GraphNameError
 
-    for g in graphs:
-        _check_graph(g, "graph")
     problems: dict[str, Exception] = {}
     with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
-        last = next((g for g in reversed(graphs) if store.has_graph(g)), None)  # one compaction, at the end
+        named: dict[str, str] = {}
         for g in graphs:
             try:
-                if not unload(store, g, compact=compact and g == last):
-                    problems[g] = UsageProblem(f"no graph {g} in the store (see `stepnc-graph info`)")
+                named[g] = pick_graph(store, g)
+            except UsageProblem as exc:
+                problems[g] = exc
+        last = next((named[g] for g in reversed(graphs) if g in named), None)  # one compaction, at the end
+        for g, iri in named.items():
+            try:
+                if not unload(store, iri, compact=compact and iri == last):
+                    problems[g] = UsageProblem(f"no graph {iri} in the store (see `stepnc-graph info`)")
             except GraphNameError as exc:
                 problems[g] = exc
     for g in graphs:
         if g not in problems:
-            out.print(f"removed: {escape(g)}")
+            out.print(f"removed: {escape(named[g])}")
     if problems:
         for problem in problems.values():
             print_error(problem)

@@ -20,6 +20,7 @@ from stepnc_graph.cli.common import (
     escape,
     is_terminal,
     open_reader,
+    pick_graph,
     reports_errors,
     with_endpoint,
     write_out,
@@ -83,7 +84,6 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     any result). Exit codes: 0 no violation (warnings and infos do not fail),
     1 violations, 2 bad input, refused shapes or usage.
     """
-    from stepnc_graph.loading.sources import check_iri
     from stepnc_graph.validation import ShapesError, validate
 
     in_store = store_path is not None or remote.wanted(store_path, bool(files))
@@ -91,8 +91,6 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         raise UsageProblem("give FILES, or --store DIR / --endpoint URL; not both and not neither")
     if graphs and not in_store:
         raise UsageProblem("--graph needs --store or --endpoint")
-    for g in graphs:
-        check_iri(g, "--graph")
     if allow_service:
         err.print("[yellow]warning:[/] --allow-service: SERVICE clauses in the shapes send requests to the servers "
                   "they name", markup=True, highlight=False)
@@ -100,7 +98,7 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         with phases() as progress:
             if in_store:
                 with open_reader(store_path, remote) as store:
-                    report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra),
+                    report = validate(store, graphs=[pick_graph(store, g) for g in graphs] or None, extra_shapes=list(extra),
                                       severity=severity, iso_shapes=not no_iso, allow_service=allow_service,
                                       progress=progress)
             else:
