@@ -287,3 +287,49 @@ def test_cli_commands_take_a_file_name_for_the_graph(tmp_path: Path) -> None:
     assert done.exit_code == 2 and "did you mean https://w3id.org/stepnc-graph/data/shaft_damaged.stp" in done.stderr
     done = runner.invoke(main, ["unload", *store, "shaft_damaged.stp"])
     assert done.exit_code == 0 and "removed: https://w3id.org/stepnc-graph/data/shaft_damaged.stp" in done.stdout
+
+
+# -- 10: the notebook: a reader that blocks no load, a report that shows itself, errors in API terms --
+
+
+def test_api_errors_name_keywords_and_the_cli_names_flags(tmp_path: Path) -> None:
+    from stepnc_graph.workplan.plan import PlanError
+
+    store = sg.open_store(memory=True)
+    sg.load(store, [EXAMPLE, DAMAGED], lenient=True)
+    with pytest.raises(PlanError) as bad:
+        sg.build_plan(store)
+    assert "graph=" in str(bad.value) and "--graph" not in str(bad.value) and "sg.info(store)" in str(bad.value)
+    with pytest.raises(ValueError) as bad:
+        sg.export(store, "ttl")
+    assert "graph=" in str(bad.value) and "--" not in str(bad.value)
+    with pytest.raises(ValueError) as bad:
+        sg.query(store, "workingsteps-by-tool-type", tool_type="spoon")
+    assert "tool_type='spoon'" in str(bad.value) and "--param" not in str(bad.value)
+    saved = ["--store", str(tmp_path / "s")]
+    assert CliRunner().invoke(main, ["load", *saved, "--lenient", str(EXAMPLE), str(DAMAGED)]).exit_code == 1
+    done = CliRunner().invoke(main, ["plan", *saved])
+    assert done.exit_code == 2 and "--graph" in done.stderr and "stepnc-graph info" in done.stderr
+
+
+def test_a_validation_report_shows_itself_in_a_notebook() -> None:
+    from stepnc_graph.validation import validate
+
+    report = validate([DAMAGED])
+    html = report._repr_html_()
+    assert "does not conform" in html and "16 violation(s)" in html
+    assert html.count("<tr>") == 1 + len(report.by_rule()) + 1 + 16  # two tables with their heads
+    assert "<td>P21-UNRESOLVED-REF</td>" in html and "&lt;" not in report.results[0].message
+    assert repr(report).startswith("<ValidationReport fails: 16 violation(s)")
+
+
+def test_a_notebook_reader_does_not_block_a_load(tmp_path: Path) -> None:
+    store_dir = tmp_path / "store"
+    saved = ["--store", str(store_dir)]
+    assert CliRunner().invoke(main, ["load", *saved, str(EXAMPLE)]).exit_code == 0
+    text = (ROOT / "docs" / "querying.md").read_text(encoding="utf-8")
+    recipe = text.split("```python\n", 1)[1].split("\n", 2)[1]  # the notebook's open_store line
+    assert "readonly=True" in recipe
+    with sg.open_store(store_dir, readonly=True) as reader:
+        assert CliRunner().invoke(main, ["load", *saved, str(DAMAGED), "--lenient"]).exit_code == 1
+        assert len(sg.query(reader, "tool-changes")) == 2

@@ -187,7 +187,7 @@ def test_linking_again_replaces_and_another_file_of_the_same_name_needs_replace(
     assert ids == {"PN 2"}
     (tmp_path / "other").mkdir()
     other = write(tmp_path / "other", "links.csv", "its_id,identifier\nSHAFT-42,PN 3\n")
-    with pytest.raises(SourceError, match="--replace"):
+    with pytest.raises(SourceError, match="replace=True"):
         sg.link(store, other, graph)
     sg.link(store, other, graph, replace=True)
 

@@ -368,8 +368,10 @@ class Group(click.Group):
             return super().make_context(info_name, args, parent, **extra)
 
     def invoke(self, ctx: click.Context) -> Any:
+        from stepnc_graph.core.errors import command_line
+
         try:
-            with _safe_usage_errors():
+            with _safe_usage_errors(), command_line():
                 return super().invoke(ctx)
         except KeyboardInterrupt:
             err.print("interrupted")

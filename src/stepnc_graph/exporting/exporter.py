@@ -17,6 +17,7 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import listed_by, option
 from stepnc_graph.generators.context import context
 from stepnc_graph.mapping.plans import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
@@ -50,8 +51,9 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
     if graph is None and fmt in ("ttl", "nt", "p21"):
         programs = program_graphs(store)
         if len(programs) != 1:
-            raise ExportError(f"--format {fmt} writes one graph and the store holds {len(programs)} programs; choose "
-                              "one with --graph (see `stepnc-graph info`) or use nq, trig or jsonld")
+            raise ExportError(f"{fmt} writes one graph and the store holds {len(programs)} programs; "
+                              f"choose one with {option('graph')} ({listed_by()}) or use nq, trig or "
+                              "jsonld")
         graph = programs[0]
     if fmt == "p21":
         assert graph is not None

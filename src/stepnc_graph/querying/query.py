@@ -51,6 +51,7 @@ from stepnc_graph.core.naming import (
     VOCABULARY_GRAPH,
     derived_graph_iri,
 )
+from stepnc_graph.core.errors import option
 from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_queries, vocabulary_status
@@ -294,6 +295,11 @@ def _guess(value: str) -> str:
     return "string"
 
 
+def _param(name: str, value: str) -> str:
+    """A parameter as the caller gave it: ``--param name=value``, or the keyword ``name='value'``."""
+    return option("param", f"{name}={value}") if option("param").startswith("--") else f"{name}={value!r}"
+
+
 def bind(store: GraphStore, query: Query, given: Mapping[str, str]) -> dict[ox.Variable, ox.NamedNode | ox.Literal]:
     """The terms to substitute: declared parameters (given or default), and undeclared ones by their look."""
     out: dict[ox.Variable, ox.NamedNode | ox.Literal] = {}
@@ -309,13 +315,13 @@ def bind(store: GraphStore, query: Query, given: Mapping[str, str]) -> dict[ox.V
         try:
             out[ox.Variable(p.name)] = to_term(store, p.type, value)
         except ValueError as exc:
-            raise QueryError(f"--param {p.name}={value}: {exc}", query.source, p.line, parameter=p.name) from None
+            raise QueryError(f"{_param(p.name, value)}: {exc}", query.source, p.line, parameter=p.name) from None
     for name, value in given.items():
         if query.param(name) is None:
             try:
                 out[ox.Variable(name)] = to_term(store, _guess(value), value)
             except ValueError as exc:
-                raise QueryError(f"--param {name}={value}: {exc}", query.source, parameter=name) from None
+                raise QueryError(f"{_param(name, value)}: {exc}", query.source, parameter=name) from None
     return out
 
 

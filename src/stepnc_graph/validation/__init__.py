@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import option
 from stepnc_graph.core.naming import DATA_BASE, P21_NS, instance_id
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.validation import compiled
@@ -188,7 +189,8 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
     started = time.perf_counter()
     files = (shape_files(shapes_dir, process) if iso_shapes else []) + [Path(p) for p in extra_shapes]
     if not files:
-        raise ShapesError("no shapes: give --shapes FILE, or leave the ISO 14649 shapes in")
+        raise ShapesError(f"no shapes: give {option('shapes', 'FILE', api='extra_shapes')}, or leave the ISO 14649 "
+                          "shapes in")
     compiled_shapes = compile_shapes(files, shapes_dir)
     shapes, checks = compiled_shapes, compiled_shapes.checks
     level = severity.capitalize()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable
+from html import escape
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -186,6 +187,28 @@ class ValidationReport:
                                  f"{f'  [{cite}]' if cite else ''}"))
         return out
 
+    def __repr__(self) -> str:
+        c = self.counts()
+        return (f"<ValidationReport {'passes' if self.passes else 'fails'}: {c['Violation']:,} violation(s), "
+                f"{c['Warning']:,} warning(s), {c['Info']:,} info in {len(self.graphs)} graph(s)>")
+
+    def _repr_html_(self, max_results: int = 200) -> str:  # Jupyter
+        """A notebook shows the verdict, the counts by rule and the first results as tables."""
+        c = self.counts()
+        verdict = "conforms" if self.conforms else "passes (warnings only)" if self.passes else "does not conform"
+        head = (f"<p><b>{escape(verdict)}</b>: {c['Violation']:,} violation(s), {c['Warning']:,} warning(s), "
+                f"{c['Info']:,} info in {len(self.graphs)} graph(s)</p>")
+        rules = _table(["count", "severity", "path", "rule", "clause", "message"],
+                       [[f"{r.count:,}", r.severity, r.path, r.rule, r.clause, r.message] for r in self.by_rule()])
+        shown = self.results[:max_results]
+        rows = _table(["severity", "line", "#id", "entity", "path", "value", "message", "rule", "clause"],
+                      [[r.severity, "" if r.line is None else str(r.line), "" if r.p21_id is None else f"#{r.p21_id}",
+                        r.entity or "", r.path or "", r.value or "", r.message, r.rule or "", r.clause or ""]
+                       for r in shown])
+        more = (f"<p>... {len(self.results) - len(shown):,} more result(s): <code>report.results</code></p>"
+                if len(shown) < len(self.results) else "")
+        return head + (rules + rows + more if self.results else "")
+
     def to_turtle(self) -> str:
         """The standard SHACL validation report."""
         out = ["@prefix sh: <http://www.w3.org/ns/shacl#> .",
@@ -213,6 +236,13 @@ class ValidationReport:
                 parts.append(f"p21:line {r.line}")
             out.append(" ;\n  sh:result [ " + " ;\n      ".join(parts) + " ]")
         return "\n".join(out) + " .\n"
+
+
+def _table(columns: list[str], rows: list[list[str]]) -> str:
+    """An HTML table, every cell escaped (values come from the program and the shapes files)."""
+    head = "".join(f"<th>{escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{escape(v)}</td>" for v in row) + "</tr>" for row in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
 def _term(value: str) -> str:

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import listed_by, option
 from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri
 from stepnc_graph.querying.query import PREFIXES
 from stepnc_graph.store import program_graphs
@@ -359,8 +360,8 @@ def build_plan(store: GraphStore, graph: str | None = None, *, network: bool = T
     programs = program_graphs(store)
     if graph is None:
         if len(programs) != 1:
-            raise PlanError(f"the store holds {len(programs)} programs; choose one with --graph "
-                            "(see `stepnc-graph info`)")
+            raise PlanError(f"the store holds {len(programs)} programs; choose one with {option('graph')} "
+                            f"({listed_by()})")
         graph = programs[0]
     if graph not in programs:
         raise PlanError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
