@@ -333,3 +333,28 @@ def test_a_notebook_reader_does_not_block_a_load(tmp_path: Path) -> None:
     with sg.open_store(store_dir, readonly=True) as reader:
         assert CliRunner().invoke(main, ["load", *saved, str(DAMAGED), "--lenient"]).exit_code == 1
         assert len(sg.query(reader, "tool-changes")) == 2
+
+
+# -- 4: a strict error caused by a string that ran on names where it opened -------------------------
+
+
+def test_strict_error_names_where_a_runaway_string_opened(tmp_path: Path) -> None:
+    from stepnc_graph.part21 import Part21SyntaxError
+
+    def read_file(path: Path) -> None:
+        sg.load(sg.open_store(memory=True), [path])
+
+    with pytest.raises(Part21SyntaxError) as bad:
+        read_file(DAMAGED)
+    error = bad.value
+    assert (error.line, error.column) == (18, 24) and error.p21_id == 12
+    assert "not closed before the next instance (line 20)" in str(error)
+    assert "typographic quote (U+2019) at 18:51" in str(error)
+    plain = tmp_path / "plain.stp"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    plain.write_text(text.replace("'WS1 FACE RIGHT ROUGH'", "'WS1 FACE RIGHT ROUGH", 1), encoding="utf-8")
+    with pytest.raises(Part21SyntaxError) as bad:
+        read_file(plain)
+    line = next(n for n, t in enumerate(text.splitlines(), 1) if "'WS1 FACE RIGHT ROUGH'" in t)
+    assert bad.value.line == line and "not closed before the next instance" in str(bad.value)
+    assert "typographic" not in str(bad.value)
