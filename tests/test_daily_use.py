@@ -358,3 +358,38 @@ def test_strict_error_names_where_a_runaway_string_opened(tmp_path: Path) -> Non
     line = next(n for n, t in enumerate(text.splitlines(), 1) if "'WS1 FACE RIGHT ROUGH'" in t)
     assert bad.value.line == line and "not closed before the next instance" in str(bad.value)
     assert "typographic" not in str(bad.value)
+
+
+# -- 8: output people read: terminal width, one name per format, JSON lines, RDF for CONSTRUCT ------
+
+
+def test_a_table_fits_the_width_it_is_given(shaft: GraphStore) -> None:
+    result = sg.query(shaft, "tool-changes")
+    wide = result.serialize("table").decode().splitlines()
+    assert max(len(line) for line in wide) > 80
+    fitted = result.serialize("table", width=80).decode().splitlines()
+    assert len(fitted) == len(wide) and max(len(line) for line in fitted) <= 80
+    assert "\u2026" in fitted[1] and "SETUP 1" in fitted[1] and " #34 " in fitted[1]  # short cells stay whole
+    roomy = result.serialize("table", width=200).decode().splitlines()
+    assert roomy == wide  # a table that fits is not touched
+
+
+def test_format_names_are_one_set_in_any_case() -> None:
+    runner = CliRunner()
+    done = runner.invoke(main, ["validate", "--format", "ttl", str(EXAMPLE)])
+    assert done.exit_code == 0 and "sh:ValidationReport" in done.stdout, done.output
+    done = runner.invoke(main, ["query", "tool-changes", str(EXAMPLE), "--format", "CSV"])
+    assert done.exit_code == 0 and done.stdout.startswith("program,changes"), done.output
+    done = runner.invoke(main, ["query", "tool-changes", str(EXAMPLE), "--format", "markdown"])
+    assert done.exit_code == 0 and done.stdout.startswith("| program |"), done.output
+
+
+def test_json_ends_with_a_newline_and_construct_gives_rdf() -> None:
+    runner = CliRunner()
+    done = runner.invoke(main, ["query", "tool-changes", str(EXAMPLE), "--format", "json"])
+    assert done.exit_code == 0 and done.stdout.endswith("}\n")
+    construct = "CONSTRUCT { ?ws rdfs:label ?l } WHERE { ?ws a stepnc:machining_workingstep ; rdfs:label ?l }"
+    done = runner.invoke(main, ["query", "-e", construct, str(EXAMPLE), "--format", "turtle"])
+    assert done.exit_code == 0 and "@prefix rdfs:" in done.stdout and 'rdfs:label "WS1 FACE RIGHT ROUGH"' in done.stdout
+    done = runner.invoke(main, ["query", "tool-changes", str(EXAMPLE), "--format", "nt"])
+    assert done.exit_code == 2 and "for CONSTRUCT and DESCRIBE results" in done.stderr

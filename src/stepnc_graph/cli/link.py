@@ -13,6 +13,7 @@ from pathlib import Path
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_NONCONFORMING,
     escape,
     open_writer,
@@ -33,7 +34,7 @@ from stepnc_graph.cli.common import (
 @click.option("--allow-unknown", is_flag=True,
               help="Link the rows that match and report the others (exit 1), instead of linking nothing (exit 2).")
 @click.option("--replace", is_flag=True, help="Replace the links of another mapping file with the same file name.")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, wait: bool, allow_unknown: bool,
              replace: bool, fmt: str) -> None:

@@ -14,6 +14,7 @@ from typing import Any
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_NONCONFORMING,
     EXIT_OK,
     echo_json,
@@ -63,7 +64,7 @@ def ontology_build(root: Path | None, check: bool) -> None:
 
 @ontology.command("stats")
 @root_option
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
     """Entities, types and attributes per schema: in the EXPRESS and in the ontology.
 

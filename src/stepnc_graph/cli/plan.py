@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_BAD_INPUT,
     EXIT_OK,
     RemoteOptions,
@@ -34,7 +35,7 @@ def _fail(message: str) -> None:
 @with_endpoint
 @click.option("--graph", default=None, help="The loaded program to show (see `stepnc-graph info`); needed when "
                                             "the store holds several.")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @click.option("--graphml", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write the plan graph as GraphML (for yEd, Gephi, Cytoscape).")
 @click.option("--svg", type=click.Path(dir_okay=False, path_type=Path), default=None,

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     pick_graph,
     EXIT_BAD_INPUT,
     EXIT_NONCONFORMING,
@@ -60,7 +61,7 @@ _COLOURS = {"error": "red", "warning": "yellow"}
                    "https://w3id.org/stepnc-graph/data/<file name>. Required for standard input (-).")
 @click.option("--replace", is_flag=True,
               help="Replace a graph even when it holds a different file (same name, other folder).")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, remote: RemoteOptions, wait: bool,
              lenient: bool, base_iri: str | None, replace: bool, fmt: str) -> None:
@@ -184,7 +185,7 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
 @click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`). Default: the loaded "
                                             "graphs -- programs and link graphs, not the vocabulary or derived "
                                             "layers -- for nq, trig and jsonld; the only program for ttl, nt, p21.")
-@click.option("--format", "fmt", type=click.Choice(["ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21"]),
+@click.option("--format", "fmt", type=format_choice(["ttl", "nt", "nq", "trig", "jsonld", "jsonld-tree", "p21"]),
               required=True, help="p21 writes the graph back as a Part 21 file; jsonld-tree frames a program as a "
                                   "tree (project, workplans, workingsteps, operation, tool, feature).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -291,7 +292,7 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
 @click.command("compact")
 @store_option
 @wait_option
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
     """Give back the disk space that unloaded programs still hold.
@@ -338,7 +339,7 @@ def _quad_progress(fmt: str) -> Any:
 @click.command("info")
 @store_option
 @with_endpoint
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
     """List the loaded files' graphs in the store, with their source file and counts."""

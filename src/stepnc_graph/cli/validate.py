@@ -12,6 +12,7 @@ from pathlib import Path
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_NONCONFORMING,
     EXIT_OK,
     RemoteOptions,
@@ -48,7 +49,7 @@ def phases() -> Iterator[Callable[[str], None] | None]:
                    "running meanwhile is not waited for).")
 @with_endpoint
 @click.option("--graph", "graphs", multiple=True, help="A graph of the store to validate (repeatable; default: all).")
-@click.option("--format", "fmt", type=click.Choice(["text", "json", "turtle"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json", "turtle"]), default="text", show_default=True)
 @click.option("--severity", type=click.Choice(["violation", "warning", "info"]), default="info", show_default=True,
               help="The lowest severity reported.")
 @click.option("--shapes", "extra", multiple=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),

@@ -80,7 +80,9 @@ PREFIXES: dict[str, str] = {
 }
 #: Prefixes used to shorten IRIs in the ``table`` and ``md`` formats only.
 DISPLAY_PREFIXES = {**PREFIXES, "data": DATA_BASE}
-FORMATS = ("table", "csv", "tsv", "json", "md")
+FORMATS = ("table", "csv", "tsv", "json", "md", "ttl", "nt")
+#: The formats of CONSTRUCT and DESCRIBE results (RDF): the others give N-Triples for them.
+RDF_FORMATS = ("ttl", "nt")
 PARAM_TYPES = ("class", "iri", "string", "integer", "decimal", "boolean")
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 _PARAM = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\((?P<type>[a-z]+)\)\s*"
@@ -505,9 +507,12 @@ class QueryResult:
     def display_rows(self) -> list[list[str]]:
         return [[display(t) for t in row] for row in self.terms]
 
-    def serialize(self, fmt: str, *, csv_raw: bool = False, cell: Callable[[str], str] | None = None) -> bytes:
+    def serialize(self, fmt: str, *, csv_raw: bool = False, cell: Callable[[str], str] | None = None,
+                  width: int | None = None) -> bytes:
         """``csv``/``tsv``/``json``: the SPARQL 1.1 results formats (Oxigraph's writers); ``md``: a
-        Markdown table; ``table``: aligned text. CONSTRUCT results are N-Triples in every format.
+        Markdown table; ``table``: aligned text, fitted to ``width`` columns when given (long cells
+        cut with an ellipsis). CONSTRUCT and DESCRIBE results are RDF: ``ttl`` (Turtle with the
+        query prefixes) or ``nt``, and N-Triples in the other formats; ``ttl``/``nt`` are for them only.
 
         In ``csv`` and ``tsv`` a literal a spreadsheet would run as a formula gets a leading ``'``
         (:func:`formula_guard`); ``csv_raw`` writes the W3C form exactly. ``cell`` is applied to
@@ -517,9 +522,14 @@ class QueryResult:
         if fmt not in FORMATS:
             raise QueryError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
         if self.kind == "graph":
+            if fmt == "ttl":
+                return ox.serialize(self.triples, format=ox.RdfFormat.TURTLE, prefixes=PREFIXES) or b""
             return ox.serialize(self.triples, format=ox.RdfFormat.N_TRIPLES) or b""
+        if fmt in RDF_FORMATS:
+            raise QueryError(f"{fmt} is for CONSTRUCT and DESCRIBE results (RDF); a {self.kind.upper()} result is "
+                             "written as table, csv, tsv, json or md")
         if fmt == "json":
-            return self._json
+            return self._json if self._json.endswith(b"\n") else self._json + b"\n"
         if fmt in ("csv", "tsv"):
             return self._sparql_table(fmt, csv_raw, cell)
         if self.kind == "ask":
@@ -533,9 +543,9 @@ class QueryResult:
             lines = ["| " + " | ".join(self.variables) + " |", "|" + "---|" * len(self.variables)]
             lines += ["| " + " | ".join(markdown(c) for c in row) + " |" for row in rows]
             return ("\n".join(lines) + "\n").encode()
-        widths = [max([len(v)] + [len(r[i]) for r in rows]) for i, v in enumerate(self.variables)]
-        lines = ["  ".join(v.ljust(w) for v, w in zip(self.variables, widths, strict=True)).rstrip()]
-        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
+        widths = _fit([max([len(v)] + [len(r[i]) for r in rows]) for i, v in enumerate(self.variables)], width)
+        lines = ["  ".join(_cut(v, w).ljust(w) for v, w in zip(self.variables, widths, strict=True)).rstrip()]
+        lines += ["  ".join(_cut(c, w).ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
         return ("\n".join(lines) + "\n").encode()
 
     def _sparql_table(self, fmt: str, csv_raw: bool, cell: Callable[[str], str] | None) -> bytes:
@@ -550,6 +560,28 @@ class QueryResult:
         target = ox.QueryResultsFormat.CSV if fmt == "csv" else ox.QueryResultsFormat.TSV
         parsed = ox.parse_query_results(data, format=ox.QueryResultsFormat.JSON)
         return parsed.serialize(format=target) or b""
+
+
+def _fit(widths: list[int], width: int | None, least: int = 6) -> list[int]:
+    """Column widths that fit ``width`` characters with two spaces between columns: the widest
+    column gives way first, none below ``least`` (a table too wide even so stays too wide)."""
+    widths = list(widths)
+    if width is None:
+        return widths
+    excess = sum(widths) + 2 * (len(widths) - 1) - width
+    while excess > 0:
+        k = max(range(len(widths)), key=lambda i: widths[i])
+        if widths[k] <= least:
+            break
+        widths[k] -= 1
+        excess -= 1
+    return widths
+
+
+def _cut(text: str, width: int) -> str:
+    """``text`` in ``width`` characters: one line, cut with an ellipsis when longer."""
+    text = text.replace("\n", " ")
+    return text if len(text) <= width else text[:max(width - 1, 0)] + "\u2026"
 
 
 # -- running ---------------------------------------------------------------------------------------
