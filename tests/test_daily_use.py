@@ -393,3 +393,39 @@ def test_json_ends_with_a_newline_and_construct_gives_rdf() -> None:
     assert done.exit_code == 0 and "@prefix rdfs:" in done.stdout and 'rdfs:label "WS1 FACE RIGHT ROUGH"' in done.stdout
     done = runner.invoke(main, ["query", "tool-changes", str(EXAMPLE), "--format", "nt"])
     assert done.exit_code == 2 and "for CONSTRUCT and DESCRIBE results" in done.stderr
+
+
+# -- 11: the reference is installed and complete, completion is documented --------------------------
+
+
+def test_used_by_reaches_through_supertypes_and_selects() -> None:
+    html = (ROOT / "docs" / "ontology.html").read_text(encoding="utf-8")
+    section = html[html.index('id="turning_technology"'):]
+    section = section[:section.index("</section>")]
+    assert "Used through a supertype or SELECT" in section
+    assert ('<a href="#machining_operation"><code>machining_operation</code></a>.<code>its_technology</code> '
+            '(as <a href="#technology"><code>technology</code></a>)') in section
+
+
+def test_the_reference_ships_in_the_wheel_and_the_cli_finds_it() -> None:
+    import tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    shipped = config["tool"]["hatch"]["build"]["targets"]["wheel"]["force-include"]
+    assert shipped["docs/ontology.html"] == "stepnc_graph/data/docs/ontology.html"
+    done = CliRunner().invoke(main, ["ontology", "reference"])
+    assert done.exit_code == 0 and Path(done.stdout.strip()) == ROOT / "docs" / "ontology.html"
+
+
+def test_shell_completion_works_as_documented() -> None:
+    import os
+    import subprocess
+    import sys
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert 'eval "$(_STEPNC_GRAPH_COMPLETE=bash_source stepnc-graph)"' in readme
+    env = {**os.environ, "_STEPNC_GRAPH_COMPLETE": "bash_complete", "COMP_WORDS": "stepnc-graph val",
+           "COMP_CWORD": "1"}
+    done = subprocess.run([sys.executable, "-c", "from stepnc_graph.cli import main; main(prog_name='stepnc-graph')"], env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert "validate" in done.stdout, (done.stdout, done.stderr)

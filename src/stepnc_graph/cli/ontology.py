@@ -22,7 +22,9 @@ from stepnc_graph.cli.common import (
     escape,
     fail_input,
     out,
+    reports_errors,
     root_option,
+    UsageProblem,
 )
 from stepnc_graph.core.resources import data_root
 
@@ -60,6 +62,20 @@ def ontology_build(root: Path | None, check: bool) -> None:
     for rel in result.written:
         out.print(f"wrote {escape(str(rel))}")
     out.print(f"{len(result.written)} written, {len(result.unchanged)} unchanged ({seconds:.2f} s)")
+
+
+@ontology.command("reference")
+@reports_errors
+def ontology_reference_cmd() -> None:
+    """Print where the HTML reference of the vocabulary is (installed with the package): every class
+    with its attributes in Part 21 order, the generic property beside each, "used by" (through
+    supertypes and SELECTs too) and an A-Z index. Open it in a browser."""
+    from stepnc_graph.core.resources import reference_html
+
+    path = reference_html()
+    if not path.is_file():
+        raise UsageProblem(f"no HTML reference at {path}: reinstall stepnc-graph")
+    click.echo(str(path))
 
 
 @ontology.command("stats")
