@@ -429,3 +429,26 @@ def test_shell_completion_works_as_documented() -> None:
     done = subprocess.run([sys.executable, "-c", "from stepnc_graph.cli import main; main(prog_name='stepnc-graph')"], env=env,
                           capture_output=True, text=True, timeout=60)
     assert "validate" in done.stdout, (done.stdout, done.stderr)
+
+
+# -- 12: the plan picture: whole labels, lanes named by their workplans, the operation on the box --
+
+
+def test_plan_boxes_hold_whole_labels_and_the_operation_and_lanes_name_workplans() -> None:
+    import xml.etree.ElementTree as ET
+
+    store = sg.open_store(memory=True)
+    sg.load(store, [EXAMPLE])
+    svg = ET.fromstring(sg.build_plan(store).svg())
+    ns = "{http://www.w3.org/2000/svg}"
+    first = next(g for g in svg.iter(f"{ns}g") if g.get("data-order") == "1")
+    texts = [t.text for t in first.iter(f"{ns}text")]
+    assert " ".join(texts[:2]) == "1. WS1 FACE RIGHT ROUGH" and "\u2026" not in " ".join(texts)
+    assert "facing_rough" in texts
+    lanes = {g.get("data-setup"): g.get("data-workplan") for g in svg.iter(f"{ns}g") if g.get("class") == "lane"}
+    assert lanes == {"SETUP 1": "SETUP 1 - RIGHT END", "SETUP 2": "SETUP 2 - LEFT END"}
+
+
+def test_plan_summary_names_the_shared_tool() -> None:
+    done = CliRunner().invoke(main, ["plan", str(EXAMPLE)])
+    assert done.exit_code == 0 and "shared tool T01 CNMG 120408 #100: SETUP 1, SETUP 2" in done.stdout

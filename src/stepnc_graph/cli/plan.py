@@ -117,7 +117,9 @@ def _print_summary(plan: object) -> None:
         out.print("\n".join(lines), markup=False, highlight=False)
     late = [f"  [red]precedence:[/] {escape(p.feature.label)} {escape(p.feature.ref)}: finishing step {p.finish} runs "
             f"before roughing step {p.rough}" for p in plan.precedence_violations()]
-    shared = [f"  shared tool {tool}: {', '.join(setups)}" for tool, setups in plan.shared_tools().items()]
+    names = {s.tool.ref: s.tool.label for s in plan.steps if s.tool is not None}
+    shared = [f"  shared tool {names.get(tool, '')} {tool}: {', '.join(setups)}".replace("tool  #", "tool #")
+              for tool, setups in plan.shared_tools().items()]
     if late:
         out.print("\n".join(late), markup=True, highlight=False)
     if shared:
