@@ -176,8 +176,29 @@ def program_file(data: Path, program: str, size: int, real: Path) -> Path:
     return path
 
 
+def main(argv: list[str] | None = None) -> int:
+    """The command line: ``N OUT`` generates, ``N OUT SOURCE`` replicates SOURCE; prints the count."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="bench/generate.py", description="Write a schema-valid synthetic turning program of about N "
+        "instances to OUT, or replicate the real program SOURCE to about N instances (ids shifted per copy).")
+    parser.add_argument("instances", type=int, metavar="N", help="about how many instances to write")
+    parser.add_argument("out", type=Path, metavar="OUT", help="the Part 21 file to write")
+    parser.add_argument("source", type=Path, metavar="SOURCE", nargs="?",
+                        help="a Part 21 program to replicate instead of generating one")
+    args = parser.parse_args(argv)
+    if args.instances < 1:
+        parser.error("N must be at least 1")
+    if args.source is not None and not args.source.is_file():
+        parser.error(f"SOURCE {args.source}: no such file")
+    try:
+        print(replicate(args.source, args.instances, args.out) if args.source is not None
+              else write(args.instances, args.out))
+    except OSError as exc:
+        parser.exit(2, f"bench/generate.py: error: {exc}\n")
+    return 0
+
+
 if __name__ == "__main__":
-    if len(sys.argv) == 4:  # generate.py N OUT SOURCE: replicate a real program
-        print(replicate(Path(sys.argv[3]), int(sys.argv[1]), Path(sys.argv[2])))
-    else:
-        print(write(int(sys.argv[1]), Path(sys.argv[2])))
+    sys.exit(main())

@@ -285,8 +285,8 @@ def test_syntax_errors_are_positioned(store: GraphStore) -> None:
     text = "SELECT ?x WHERE {\n  ?x a stepnc:workingstep ;\n     attr:its_id ?id ?\n}"
     with pytest.raises(QueryError) as bad:
         sg.query(store, text)
-    assert (bad.value.source, bad.value.line) == ("-e", 4) and bad.value.column is not None
-    assert "-e:4:" in str(bad.value) and "^" in str(bad.value)
+    assert (bad.value.source, bad.value.line, bad.value.column) == ("-e", 3, 22)  # the ? without a name
+    assert "-e:3:22" in str(bad.value) and "^" in str(bad.value) and "without a name" in str(bad.value)
     with pytest.raises(QueryError, match="prefix is not declared"):
         sg.query(store, "SELECT ?x WHERE { ?x a nope:thing }")
 
@@ -303,7 +303,7 @@ def test_unknown_names_and_graphs(store: GraphStore) -> None:
 def test_queries_are_read_only(store: GraphStore) -> None:
     before = len(store.oxigraph)
     for update in ("INSERT DATA { <urn:a> <urn:b> <urn:c> }", "DROP ALL", "CLEAR GRAPH <%s>" % SHAFT):
-        with pytest.raises(QueryError, match="syntax error"):
+        with pytest.raises(QueryError, match="updates are not allowed, queries are read-only"):
             sg.query(store, update)
     assert len(store.oxigraph) == before
 

@@ -27,7 +27,9 @@ if TYPE_CHECKING:
         GraphInfo,
         LinkResult,
         LoadResult,
+        Plan,
         QueryResult,
+        build_plan,
         compact,
         export,
         info,
@@ -39,8 +41,8 @@ if TYPE_CHECKING:
         validate,
     )
 
-__all__ = ["Compacted", "GraphInfo", "LinkResult", "LoadResult", "QueryResult", "__version__", "compact", "export",
-           "info", "link", "load", "open_store", "query", "unload", "validate"]
+__all__ = ["Compacted", "GraphInfo", "LinkResult", "LoadResult", "Plan", "QueryResult", "__version__", "build_plan",
+           "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
 
 
 class _Package(types.ModuleType):

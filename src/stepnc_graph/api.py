@@ -8,6 +8,7 @@
     rows = sg.query(store, "tool-changes").rows     # a library query; keyword arguments are parameters
     report = sg.validate(["part.stp"])               # SHACL: the ISO 14649 shapes and process rules
     report = sg.validate(["data.ttl"], extra_shapes=["shapes.ttl"], iso_shapes=False)  # any RDF, any shapes
+    plan = sg.build_plan(store)                      # the workplan: tool changes, a networkx graph, a picture
 """
 
 from __future__ import annotations
@@ -29,14 +30,17 @@ if TYPE_CHECKING:
     from stepnc_graph.loading.link import LinkResult, link
     from stepnc_graph.querying.query import QueryResult, query
     from stepnc_graph.validation import validate
+    from stepnc_graph.workplan.plan import Plan, build_plan
 
 #: API names whose modules are imported on first use: `load` (the commonest command) does not
 #: pay for the exporters, the SHACL engine or the link and query layers.
 _LAZY = {"export": "stepnc_graph.exporting.exporter", "link": "stepnc_graph.loading.link", "LinkResult": "stepnc_graph.loading.link",
-         "query": "stepnc_graph.querying.query", "QueryResult": "stepnc_graph.querying.query", "validate": "stepnc_graph.validation"}
+         "query": "stepnc_graph.querying.query", "QueryResult": "stepnc_graph.querying.query", "validate": "stepnc_graph.validation",
+         "build_plan": "stepnc_graph.workplan.plan", "Plan": "stepnc_graph.workplan.plan"}
 
-__all__ = ["Compacted", "GraphInfo", "GraphNameError", "GraphStore", "LinkResult", "LoadResult", "QueryResult", "SourceError",
-           "StoreBusy", "StoreError", "compact", "export", "info", "link", "load", "open_store", "query", "unload", "validate"]
+__all__ = ["Compacted", "GraphInfo", "GraphNameError", "GraphStore", "LinkResult", "LoadResult", "Plan", "QueryResult",
+           "SourceError", "StoreBusy", "StoreError", "build_plan", "compact", "export", "info", "link", "load", "open_store",
+           "query", "unload", "validate"]
 
 
 def __getattr__(name: str) -> Any:

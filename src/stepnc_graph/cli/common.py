@@ -79,6 +79,38 @@ def is_terminal(stream: IO[Any] | Any) -> bool:
         return False
 
 
+#: Other names of the formats, accepted by every --format (any case): one name per format across
+#: commands, whatever a user remembers (validate's ``turtle`` is export's ``ttl``).
+FORMAT_ALIASES = {"turtle": "ttl", "ntriples": "nt", "n-triples": "nt", "nquads": "nq", "n-quads": "nq",
+                  "json-ld": "jsonld", "markdown": "md", "txt": "text"}
+
+
+def format_choice(names: Iterable[str]) -> click.Choice[str]:
+    """A --format choice of ``names`` that takes them in any case and by their other names
+    (:data:`FORMAT_ALIASES`); the command gets the name it lists."""
+    listed = list(names)
+
+    class FormatChoice(click.Choice[str]):
+        def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+            text = str(value).lower()
+            text = FORMAT_ALIASES.get(text, text)
+            for name in listed:  # a command that lists the long name (validate: turtle) gets it
+                if FORMAT_ALIASES.get(name, name) == text:
+                    return name
+            return str(super().convert(value, param, ctx))
+
+    return FormatChoice(listed, case_sensitive=False)
+
+
+def table_width() -> int | None:
+    """The terminal's width for tables written to it (``$COLUMNS`` first); None into a pipe or a file."""
+    import shutil
+
+    if not is_terminal(sys.stdout):
+        return None
+    return shutil.get_terminal_size().columns
+
+
 def write_out(data: str | bytes, uchar: bool = False) -> None:
     """Data (query results, an export, a report) on standard output: exact into a pipe or a file;
     on a terminal through :func:`terminal_safe` (``uchar`` for JSON and RDF syntaxes: still valid)."""
@@ -363,9 +395,28 @@ class Group(click.Group):
             return super().make_context(info_name, args, parent, **extra)
 
     def invoke(self, ctx: click.Context) -> Any:
+        from stepnc_graph.core.errors import command_line
+
         try:
-            with _safe_usage_errors():
+            with _safe_usage_errors(), command_line():
                 return super().invoke(ctx)
         except KeyboardInterrupt:
             err.print("interrupted")
             sys.exit(EXIT_INTERRUPTED)
+
+
+def pick_graph(store: Store, given: str) -> str:
+    """The graph of ``store`` that ``--graph``/``unload`` ``given`` names: a graph's full IRI, or a
+    unique end of one (a file name; see :mod:`stepnc_graph.graphs.names`). A miss or an ambiguous
+    name is a UsageProblem that lists what it could mean."""
+    from stepnc_graph.graphs.names import UnknownGraph, resolve_graph
+
+    try:
+        if store.has_graph(given):  # any graph by its IRI: a derived layer, the vocabulary graph too
+            return given
+    except ValueError:
+        pass  # not an IRI: a file name
+    try:
+        return resolve_graph(given, store.all_graphs())
+    except UnknownGraph as exc:
+        raise UsageProblem(str(exc)) from None

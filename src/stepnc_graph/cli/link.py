@@ -13,11 +13,13 @@ from pathlib import Path
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_NONCONFORMING,
     RemoteOptions,
     escape,
     open_writer,
     out,
+    pick_graph,
     reports_errors,
     store_option,
     wait_option,
@@ -35,7 +37,7 @@ from stepnc_graph.cli.common import (
 @click.option("--allow-unknown", is_flag=True,
               help="Link the rows that match and report the others (exit 1), instead of linking nothing (exit 2).")
 @click.option("--replace", is_flag=True, help="Replace the links of another mapping file with the same file name.")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, remote: RemoteOptions, wait: bool,
              allow_unknown: bool, replace: bool, fmt: str) -> None:
@@ -54,14 +56,11 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, remote: 
     (--allow-unknown; they are listed); 2 rows matched no single entity (none
     linked, they are listed), or bad input or usage.
     """
-    from stepnc_graph.loading.common import check_iri
-
-    if graph is not None:
-        check_iri(graph, "--graph")
     from stepnc_graph.loading.link import link
 
     with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
-        result = link(store, mapping, graph, allow_unknown=allow_unknown, replace=replace)
+        result = link(store, mapping, pick_graph(store, graph) if graph is not None else None,
+                      allow_unknown=allow_unknown, replace=replace)
     if fmt == "json":
         click.echo(json.dumps(result.asdict(), indent=2))
     else:

@@ -14,6 +14,7 @@ from typing import Any
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_NONCONFORMING,
     EXIT_OK,
     echo_json,
@@ -21,7 +22,9 @@ from stepnc_graph.cli.common import (
     escape,
     fail_input,
     out,
+    reports_errors,
     root_option,
+    UsageProblem,
 )
 from stepnc_graph.core.resources import data_root
 
@@ -61,9 +64,23 @@ def ontology_build(root: Path | None, check: bool) -> None:
     out.print(f"{len(result.written)} written, {len(result.unchanged)} unchanged ({seconds:.2f} s)")
 
 
+@ontology.command("reference")
+@reports_errors
+def ontology_reference_cmd() -> None:
+    """Print where the HTML reference of the vocabulary is (installed with the package): every class
+    with its attributes in Part 21 order, the generic property beside each, "used by" (through
+    supertypes and SELECTs too) and an A-Z index. Open it in a browser."""
+    from stepnc_graph.core.resources import reference_html
+
+    path = reference_html()
+    if not path.is_file():
+        raise UsageProblem(f"no HTML reference at {path}: reinstall stepnc-graph")
+    click.echo(str(path))
+
+
 @ontology.command("stats")
 @root_option
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
     """Entities, types and attributes per schema: in the EXPRESS and in the ontology.
 

@@ -8,12 +8,14 @@ from pathlib import Path
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_BAD_INPUT,
     EXIT_OK,
     RemoteOptions,
     err,
     escape,
     out,
+    pick_graph,
     reports_errors,
     with_endpoint,
     with_store,
@@ -33,7 +35,7 @@ def _fail(message: str) -> None:
 @with_endpoint
 @click.option("--graph", default=None, help="The loaded program to show (see `stepnc-graph info`); needed when "
                                             "the store holds several.")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @click.option("--graphml", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write the plan graph as GraphML (for yEd, Gephi, Cytoscape).")
 @click.option("--svg", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -62,7 +64,8 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     with open_programs([program] if program is not None else [], store_path, memory, remote, lenient) as store:
         try:
             # the networkx graph only for what shows it (GraphML, the JSON summary's counts)
-            plan = build_plan(store, graph, network=bool(graphml) or fmt == "json")
+            picked = pick_graph(store, graph) if graph is not None else None
+            plan = build_plan(store, picked, network=bool(graphml) or fmt == "json")
         except PlanError as exc:
             _fail(str(exc))
     try:
@@ -114,7 +117,9 @@ def _print_summary(plan: object) -> None:
         out.print("\n".join(lines), markup=False, highlight=False)
     late = [f"  [red]precedence:[/] {escape(p.feature.label)} {escape(p.feature.ref)}: finishing step {p.finish} runs "
             f"before roughing step {p.rough}" for p in plan.precedence_violations()]
-    shared = [f"  shared tool {tool}: {', '.join(setups)}" for tool, setups in plan.shared_tools().items()]
+    names = {s.tool.ref: s.tool.label for s in plan.steps if s.tool is not None}
+    shared = [f"  shared tool {names.get(tool, '')} {tool}: {', '.join(setups)}".replace("tool  #", "tool #")
+              for tool, setups in plan.shared_tools().items()]
     if late:
         out.print("\n".join(late), markup=True, highlight=False)
     if shared:

@@ -17,11 +17,14 @@ from stepnc_graph.cli.common import (
     echo_json,
     err,
     escape,
+    format_choice,
     is_terminal,
     open_reader,
     out,
+    pick_graph,
     reports_errors,
     safe_cell,
+    table_width,
     with_endpoint,
     with_store,
     write_out,
@@ -91,8 +94,9 @@ def open_programs(programs: list[Path], store_path: Path | None, memory: bool, r
                                             "default: every loaded program.")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
               help="A query parameter (repeatable); see `stepnc-graph queries NAME`.")
-@click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True,
-              help="csv, tsv and json are the SPARQL 1.1 results formats.")
+@click.option("--format", "fmt", type=format_choice(FORMATS), default="table", show_default=True,
+              help="csv, tsv and json are the SPARQL 1.1 results formats; ttl and nt are for CONSTRUCT and "
+                   "DESCRIBE results. table fits a terminal's width.")
 @click.option("--csv-raw", is_flag=True,
               help="csv/tsv: the W3C form exactly. By default a text starting with = + - @, tab or CR gets a "
                    "leading ' so that a spreadsheet shows it instead of running it as a formula.")
@@ -104,8 +108,8 @@ def open_programs(programs: list[Path], store_path: Path | None, memory: bool, r
 def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, memory: bool, remote: RemoteOptions,
               graph: str | None, params: tuple[str, ...], fmt: str, csv_raw: bool, lenient: bool,
               allow_service: bool) -> None:
-    """Run NAME (a library query), FILE.rq, - (SPARQL on standard input) or -e 'SPARQL' over the store
-    or over FILE.stp programs.
+    """Run NAME (a library query), FILE.rq, - (SPARQL on standard input, also -e -) or -e 'SPARQL'
+    over the store or over FILE.stp programs.
 
     \b
       stepnc-graph query workingsteps-by-tool-type --param tool_type=grooving_tool
@@ -135,7 +139,7 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
         if not p.is_file():
             _fail(f"{p}: no such program file")
     try:
-        if spec == "-" and text is None:
+        if spec == "-":  # `query -` and `query -e -`: the SPARQL text on standard input
             stdin = sys.stdin.read()
             query = Query("-", stdin, "<stdin>", **parse_header(stdin, "<stdin>"))
         else:
@@ -148,13 +152,18 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
                   markup=True, highlight=False)
     with open_programs(programs, store_path, memory, remote, lenient) as store:
         try:
-            result = execute(store, query, _params(params), graph, allow_service=allow_service)
+            picked = pick_graph(store, graph) if graph is not None else None
+            result = execute(store, query, _params(params), picked, allow_service=allow_service)
         except QueryError as exc:
             _fail(str(exc))
     for warning in result.warnings:
         err.print(f"[yellow]warning:[/] {escape(warning)}", markup=True, highlight=False)
     cell = safe_cell if is_terminal(sys.stdout) else None
-    write_out(result.serialize(fmt, csv_raw=csv_raw, cell=cell), uchar=fmt == "json" or result.kind == "graph")
+    try:
+        data = result.serialize(fmt, csv_raw=csv_raw, cell=cell, width=table_width())
+    except QueryError as exc:
+        _fail(str(exc))
+    write_out(data, uchar=fmt == "json" or result.kind == "graph")
     if fmt in ("table", "md") and result.kind == "select":
         click.secho(f"{len(result)} row(s)", err=True, dim=True)  # not rich: its import is a third of the run
     sys.exit(EXIT_OK)
@@ -162,7 +171,7 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
 
 @click.command("queries")
 @click.argument("name", required=False)
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 def queries_cmd(name: str | None, fmt: str) -> None:
     """List the query library (names, titles, parameters), or show query NAME in full."""
     from stepnc_graph.querying.query import QueryError, describe_library, resolve

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_OK, echo_json, err, escape, fail_input, out
+from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_OK, echo_json, err, escape, fail_input, format_choice, out
 
 if TYPE_CHECKING:
     from stepnc_graph.express.parser import ParsedSchema
@@ -27,7 +27,7 @@ def schema() -> None:
 @schema.command("check")
 @click.argument("files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--parse-only", is_flag=True, help="Only parse; do not resolve names across the files.")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 def schema_check(files: tuple[Path, ...], parse_only: bool, fmt: str) -> None:
     """Parse EXPRESS FILES and resolve them together into one model.
 

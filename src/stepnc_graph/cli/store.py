@@ -16,6 +16,8 @@ import click
 
 from stepnc_graph.core.formats import export_format_names
 from stepnc_graph.cli.common import (
+    format_choice,
+    pick_graph,
     EXIT_BAD_INPUT,
     EXIT_NONCONFORMING,
     EXIT_OK,
@@ -63,7 +65,7 @@ _COLOURS = {"error": "red", "warning": "yellow"}
                    "https://w3id.org/stepnc-graph/data/<file name>. Required for standard input (-).")
 @click.option("--replace", is_flag=True,
               help="Replace a graph even when it holds a different file (same name, other folder).")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, remote: RemoteOptions, wait: bool,
              lenient: bool, base_iri: str | None, replace: bool, fmt: str, edition: str | None) -> None:
@@ -105,8 +107,9 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
         done = 0
         for source, size in zip(sources, sizes, strict=True):
             def advance(position: int, total: int, base: int = done, size: int = size,
-                        label: str = f"loading {escape(Path(source.name).name)}") -> None:
-                if bar is not None and task is not None:
+                        name: str = escape(Path(source.name).name)) -> None:
+                if bar is not None and task is not None:  # once read, the derived layer and publishing remain
+                    label = f"loading {name}" if position < total else f"{name}: derived layer, publishing"
                     bar.update(task, completed=base + position * size // max(total, 1), description=label)
 
             try:
@@ -120,6 +123,11 @@ def _load_all(store: Store, sources: list[Source], lenient: bool,
                     print_error(exc, hint)
             done += size
     return results, failures
+
+
+def _n(count: int | None) -> str:
+    """A count with thousands separators (``?`` when the load did not record it)."""
+    return "?" if count is None else f"{count:,}"
 
 
 def _size(source: Source) -> int:
@@ -161,9 +169,11 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
     else:
         for r in results:
             errors = sum(d.severity == "error" for d in r.diagnostics)
-            raw = f" ({r.raw} kept raw{f', {r.unreadable} unreadable' if r.unreadable else ''})"
-            out.print(f"loaded {escape(r.path)} -> {escape(r.graph)}\n  {r.instances} instances{raw}, "
-                      f"{r.triples} triples, {len(r.diagnostics)} diagnostics ({errors} errors) in {r.seconds:.2f} s")
+            raw = f" ({r.raw:,} kept raw{f', {r.unreadable:,} unreadable' if r.unreadable else ''})"
+            rate = f" ({r.instances / r.seconds:,.0f} instances/s)" if r.seconds > 0 and r.instances >= 1000 else ""
+            out.print(f"loaded {escape(r.path)} -> {escape(r.graph)}\n  {r.instances:,} instances{raw}, "
+                      f"{r.triples:,} triples, {len(r.diagnostics):,} diagnostics ({errors:,} errors) in "
+                      f"{r.seconds:.2f} s{rate}")
             if r.edition is not None:
                 out.print(f"  edition {r.edition.edition} (chosen by {r.edition.chosen_by}: "
                           f"{escape('; '.join(r.edition.evidence) or 'no evidence')})")
@@ -176,19 +186,13 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
     sys.exit(EXIT_NONCONFORMING if any(r.diagnostics for r in results) else EXIT_OK)
 
 
-def _check_graph(graph: str | None, what: str = "--graph") -> None:
-    if graph is not None:
-        from stepnc_graph.loading.common import check_iri
-
-        check_iri(graph, what)
-
-
 @click.command("export")
 @store_option
 @with_endpoint
-@click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`); default: all, "
-                                            "or the only one.")
-@click.option("--format", "fmt", type=click.Choice(export_format_names()),
+@click.option("--graph", default=None, help="The graph to export (see `stepnc-graph info`). Default: the loaded "
+                                            "graphs -- programs and link graphs, not the vocabulary or derived "
+                                            "layers -- for nq, trig and jsonld; the only program for ttl, nt, p21.")
+@click.option("--format", "fmt", type=format_choice(export_format_names()),
               required=True, help="p21 writes the graph back as a Part 21 file; jsonld-tree frames a program as a "
                                   "tree (project, workplans, workingsteps, operation, tool, feature).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -196,18 +200,21 @@ def _check_graph(graph: str | None, what: str = "--graph") -> None:
 @reports_errors
 def export_cmd(store_path: Path | None, remote: RemoteOptions, graph: str | None, fmt: str,
                output: Path | None) -> None:
-    """Export one graph or the whole store as RDF or as Part 21.
+    """Export one graph or the store's loaded graphs as RDF or as Part 21.
 
-    Exports are deterministic: the same graph gives the same bytes. Exit 2 for
+    Without --graph every format exports the same graphs: the programs, their
+    link graphs and graphs you added -- never the vocabulary graph or the
+    derived layers, which a load writes again (name one with --graph to export
+    it). ttl, nt and p21 hold one graph: without --graph the store must hold one
+    program. Exports are deterministic: the same graph gives the same bytes. Exit 2 for
     a graph that is not in the store or an output that cannot be written.
     """
     from stepnc_graph.exporting.exporter import export
 
-    _check_graph(graph)
     if output is not None and not output.parent.is_dir():
         raise UsageProblem(f"-o {output}: the directory {output.parent} does not exist")
     with open_reader(store_path, remote) as store:
-        data = export(store, fmt, graph)
+        data = export(store, fmt, pick_graph(store, graph) if graph is not None else None)
     if output is None:
         try:
             write_out(data, uchar=fmt != "p21")
@@ -249,7 +256,8 @@ def _write_output(output: Path, data: bytes) -> None:
 @reports_errors
 def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteOptions, wait: bool,
                compact: bool) -> None:
-    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`).
+    """Remove loaded files' graphs (GRAPHS are graph IRIs, see `stepnc-graph info`, or a unique end
+    of one: the file name, shaft.stp).
 
     A program goes with its derived layer and its link graphs; a link graph
     (<program>/links/<name>) goes alone. The vocabulary graph and a derived
@@ -264,20 +272,24 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
     from stepnc_graph.api import unload
     from stepnc_graph.core.naming import GraphNameError
 
-    for g in graphs:
-        _check_graph(g, "graph")
     problems: dict[str, Exception] = {}
     with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
-        last = next((g for g in reversed(graphs) if store.has_graph(g)), None)  # one compaction, at the end
+        named: dict[str, str] = {}
         for g in graphs:
             try:
-                if not unload(store, g, compact=compact and g == last):
-                    problems[g] = UsageProblem(f"no graph {g} in the store (see `stepnc-graph info`)")
+                named[g] = pick_graph(store, g)
+            except UsageProblem as exc:
+                problems[g] = exc
+        last = next((named[g] for g in reversed(graphs) if g in named), None)  # one compaction, at the end
+        for g, iri in named.items():
+            try:
+                if not unload(store, iri, compact=compact and iri == last):
+                    problems[g] = UsageProblem(f"no graph {iri} in the store (see `stepnc-graph info`)")
             except GraphNameError as exc:
                 problems[g] = exc
     for g in graphs:
         if g not in problems:
-            out.print(f"removed: {escape(g)}")
+            out.print(f"removed: {escape(named[g])}")
     if problems:
         for problem in problems.values():
             print_error(problem)
@@ -287,7 +299,7 @@ def unload_cmd(graphs: tuple[str, ...], store_path: Path | None, remote: RemoteO
 @click.command("compact")
 @store_option
 @wait_option
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def compact_cmd(store_path: Path | None, wait: bool, fmt: str) -> None:
     """Give back the disk space that unloaded programs still hold.
@@ -334,7 +346,7 @@ def _quad_progress(fmt: str) -> Any:
 @click.command("info")
 @store_option
 @with_endpoint
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 @reports_errors
 def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
     """List the loaded files' graphs in the store, with their source file and counts."""
@@ -354,8 +366,9 @@ def info_cmd(store_path: Path | None, remote: RemoteOptions, fmt: str) -> None:
                   f"(`unload --compact`, `compact`, or an unload once they reach a third of the store)")
     for r in rows:
         # one block per graph, IRI on its own line: it is what users copy into --graph / unload
-        out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {r.instances} instances "
-                  f"({r.raw_instances} raw), {r.triples} triples, {r.diagnostics} diagnostics; loaded {r.loaded}")
+        out.print(f"{escape(r.graph)}\n  source {escape(str(r.source))}; {_n(r.instances)} instances "
+                  f"({_n(r.raw_instances)} raw), {_n(r.triples)} triples, {_n(r.diagnostics)} diagnostics; "
+                  f"loaded {r.loaded}")
         if r.edition is not None:
             out.print(f"  edition {escape(r.edition)} (chosen by {escape(str(r.edition_chosen_by))}: "
                       f"{escape('; '.join(r.edition_evidence) or 'no evidence')})")

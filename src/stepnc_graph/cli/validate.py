@@ -4,21 +4,42 @@ rules and your own."""
 from __future__ import annotations
 
 import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
 
 from stepnc_graph.cli.common import (
+    format_choice,
     EXIT_NONCONFORMING,
     EXIT_OK,
     RemoteOptions,
     UsageProblem,
     err,
+    escape,
+    is_terminal,
     open_reader,
+    pick_graph,
     reports_errors,
     with_endpoint,
     write_out,
 )
+
+
+@contextmanager
+def phases() -> Iterator[Callable[[str], None] | None]:
+    """On a terminal, a transient status line on stderr naming the phase a long validation is in,
+    with the seconds since it began; elsewhere nothing (None)."""
+    if not is_terminal(err.file):
+        yield None
+        return
+    started = time.monotonic()
+    with err.status("validating", spinner="dots") as status:
+        def show(text: str) -> None:
+            status.update(f"{escape(text)}  [dim]{time.monotonic() - started:,.0f} s[/]")
+        yield show
 
 
 @click.command("validate")
@@ -28,7 +49,7 @@ from stepnc_graph.cli.common import (
                    "running meanwhile is not waited for).")
 @with_endpoint
 @click.option("--graph", "graphs", multiple=True, help="A graph of the store to validate (repeatable; default: all).")
-@click.option("--format", "fmt", type=click.Choice(["text", "json", "turtle"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=format_choice(["text", "json", "turtle"]), default="text", show_default=True)
 @click.option("--severity", type=click.Choice(["violation", "warning", "info"]), default="info", show_default=True,
               help="The lowest severity reported.")
 @click.option("--shapes", "extra", multiple=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
@@ -44,10 +65,12 @@ from stepnc_graph.cli.common import (
 @click.option("--edition", type=click.Choice(["2002", "fdis2001"]), default=None,
               help="Read FILES in this edition of ISO 14649 whatever they show (default: each file's own, as "
                    "load decides it); the edition's rules apply.")
+@click.option("--max-results", type=click.IntRange(min=0), default=None, metavar="N",
+              help="List at most N results (text and json; the counts and the summary by rule cover all).")
 @reports_errors
 def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: RemoteOptions, graphs: tuple[str, ...],
                  fmt: str, severity: str, extra: tuple[Path, ...], strict: bool, no_iso: bool,
-                 allow_service: bool, edition: str | None) -> None:
+                 allow_service: bool, edition: str | None, max_results: int | None) -> None:
     """Check FILES (loaded into a throw-away store) or a store's graphs.
 
     FILES are Part 21 programs (.stp, .step, .p21), JSON-LD program graphs
@@ -58,11 +81,13 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     wrong parameter count or type, unresolved reference, recovered syntax, an
     ill-typed literal) are results too.
 
+    The text report ends with how many results each rule gave; on a terminal
+    each phase (loading, checking, describing) shows while it runs.
+
     The Turtle and JSON reports carry SHACL's sh:conforms (false when there is
     any result). Exit codes: 0 no violation (warnings and infos do not fail),
     1 violations, 2 bad input, refused shapes or usage.
     """
-    from stepnc_graph.loading.common import check_iri
     from stepnc_graph.validation import validate
 
     in_store = store_path is not None or remote.wanted(store_path, bool(files))
@@ -72,20 +97,21 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
         raise UsageProblem("--graph needs --store or --endpoint")
     if edition and in_store:
         raise UsageProblem("--edition reads FILES; a store's graphs keep the edition they were loaded in")
-    for g in graphs:
-        check_iri(g, "--graph")
     if allow_service:
         err.print("[yellow]warning:[/] --allow-service: SERVICE clauses in the shapes send requests to the servers "
                   "they name", markup=True, highlight=False)
     # refused shapes, unreadable data, a store that cannot be read: errors of the project's root,
-    # reported by @reports_errors (exit 2)
-    if in_store:
-        with open_reader(store_path, remote) as store:
-            report = validate(store, graphs=list(graphs) or None, extra_shapes=list(extra), severity=severity,
-                              iso_shapes=not no_iso, allow_service=allow_service)
-    else:
-        report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
-                          iso_shapes=not no_iso, allow_service=allow_service, edition=edition)
-    text = {"text": report.to_text, "json": report.to_json, "turtle": report.to_turtle}[fmt]()
+    # reported by @reports_errors (exit 2); a --graph is one of the store's graphs or a usage error
+    with phases() as progress:
+        if in_store:
+            with open_reader(store_path, remote) as store:
+                report = validate(store, graphs=[pick_graph(store, g) for g in graphs] or None, extra_shapes=list(extra),
+                                  severity=severity, iso_shapes=not no_iso, allow_service=allow_service,
+                                  progress=progress)
+        else:
+            report = validate(list(files), extra_shapes=list(extra), severity=severity, lenient=not strict,
+                              iso_shapes=not no_iso, allow_service=allow_service, edition=edition, progress=progress)
+    text = (report.to_turtle() if fmt == "turtle" else report.to_json(max_results) if fmt == "json"
+            else report.to_text(max_results))
     write_out(text, uchar=fmt != "text")
     sys.exit(EXIT_OK if report.passes else EXIT_NONCONFORMING)

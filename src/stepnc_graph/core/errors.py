@@ -12,11 +12,42 @@ control characters, and how one is written escaped, is defined here once
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 #: characters of a source line shown on each side of an error's column
 WINDOW = 60
 _ELLIPSIS = "..."
+
+
+#: Who is calling: "api" (Python) or "cli" (the command line sets it for the command it runs).
+_SURFACE: ContextVar[str] = ContextVar("stepnc_graph_surface", default="api")
+
+
+def option(name: str, value: str = "", api: str | None = None) -> str:
+    """An option as the caller knows it, for messages: ``--graph IRI`` on the command line,
+    ``graph=IRI`` in Python (``api``: the keyword's name where it differs) -- an API error must not
+    send a notebook user to a CLI flag."""
+    if _SURFACE.get() == "cli":
+        return f"--{name.replace('_', '-')}" + (f" {value}" if value else "")
+    return f"{api or name.replace('-', '_')}={value or '...'}"
+
+
+def listed_by() -> str:
+    """Where the caller finds the store's programs: the ``info`` command, or ``sg.info(store)``."""
+    return "`stepnc-graph info` lists them" if _SURFACE.get() == "cli" else "sg.info(store) lists them"
+
+
+@contextmanager
+def command_line() -> Iterator[None]:
+    """Messages raised inside name options as the command line spells them (see :func:`option`)."""
+    token = _SURFACE.set("cli")
+    try:
+        yield
+    finally:
+        _SURFACE.reset(token)
 
 
 class StepncGraphError(Exception):

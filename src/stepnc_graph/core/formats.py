@@ -31,7 +31,7 @@ class ExportFormat:
     rdf: str | None = None
     #: it writes graph names (the whole store); the others write one graph's triples
     quads: bool = False
-    #: it writes one graph only: the store's only graph unless ``--graph`` names one
+    #: it writes one graph only: the store's only program graph unless ``--graph`` names one
     one_graph: bool = False
 
 
@@ -50,8 +50,9 @@ EXPORT_FORMATS: tuple[ExportFormat, ...] = (
     ExportFormat("p21", "the graph written back as a Part 21 file", one_graph=True),
 )
 
-#: how ``query`` lays out results: the SPARQL 1.1 results formats and two for people
-QUERY_RESULT_FORMATS: tuple[str, ...] = ("table", "csv", "tsv", "json", "md")
+#: how ``query`` lays out results: the SPARQL 1.1 results formats, two for people, and RDF for
+#: CONSTRUCT/DESCRIBE results
+QUERY_RESULT_FORMATS: tuple[str, ...] = ("table", "csv", "tsv", "json", "md", "ttl", "nt")
 
 
 def input_suffixes() -> tuple[str, ...]:

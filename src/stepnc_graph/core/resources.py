@@ -46,6 +46,12 @@ def queries_dir() -> Path:
     return data_root() / "queries"
 
 
+def reference_html() -> Path:
+    """The generated HTML reference of the vocabulary (``docs/ontology.html``; in the wheel under
+    ``stepnc_graph/data/docs/``)."""
+    return data_root() / "docs" / "ontology.html"
+
+
 def sources_digest(files: Iterable[tuple[str, bytes]]) -> str:
     """SHA-256 over source files (relative name and content, in the order given) that a generated
     file was built from: the digest a compiled file records to tell when it is stale.

@@ -17,12 +17,12 @@ from typing import IO, cast
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.errors import StepncGraphError, listed_by, option
 from stepnc_graph.core.formats import EXPORT_FORMATS, export_format, export_format_names
 from stepnc_graph.generators.context import context
 from stepnc_graph.mapping.plans import iso14649_plans
 from stepnc_graph.mapping.writer import write_graph
-from stepnc_graph.core.naming import P21_NS, listed_graphs
+from stepnc_graph.core.naming import P21_NS, listed_graphs, program_graphs
 from stepnc_graph.schema.catalog import iso14649
 from stepnc_graph.store.contract import Store
 
@@ -36,10 +36,13 @@ class ExportError(StepncGraphError, ValueError):
 
 
 def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
-    """Serialise one graph (``graph``) or the whole store (``None``) as ``fmt``.
+    """Serialise one graph (``graph``) or the store's loaded graphs (``None``) as ``fmt``.
 
-    Triple formats (ttl, nt, jsonld of one graph, p21) need a graph unless the
-    store holds exactly one; nq and trig keep graph names.
+    One rule for every format: without ``graph`` an export holds the graphs a user names -- the
+    programs, their link graphs and graphs users added (:func:`~stepnc_graph.core.naming.listed_graphs`) -- never the
+    vocabulary graph or the derived layers, which a load writes again (name one with ``graph``
+    to export it). Triple formats (ttl, nt, p21) hold one graph, so without ``graph`` they need a
+    store of one program (that program's graph); nq, trig and jsonld keep graph names.
     """
     chosen = export_format(fmt)
     if chosen is None:
@@ -47,20 +50,21 @@ def export(store: Store, fmt: str, graph: str | None = None) -> bytes:
     if graph is not None and not store.has_graph(graph):
         raise ExportError(f"no graph {graph} in the store")
     if graph is None and chosen.one_graph:
-        graphs = listed_graphs(store)
-        if len(graphs) != 1:
-            raise ExportError(f"--format {fmt} writes one graph and the store has {len(graphs)}; choose one with "
-                              f"--graph (see `stepnc-graph info`) or use nq/trig")
-        graph = graphs[0]
+        programs = program_graphs(store)
+        if len(programs) != 1:
+            raise ExportError(f"{fmt} writes one graph and the store holds {len(programs)} programs; "
+                              f"choose one with {option('graph')} ({listed_by()}) or use nq, trig or jsonld")
+        graph = programs[0]
     if fmt == "p21":
         assert graph is not None
         return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
+    graphs = None if graph is not None else listed_graphs(store)
     # the canonical order is read from one dump of each graph: a remote graph is copied here first
-    local = store if store.capabilities.local_reads else store.local_copy(graph)
+    local = store if store.capabilities.local_reads else store.local_copy(graph or graphs)
     if chosen.rdf is None:  # JSON-LD, compacted or framed
-        return _jsonld(local, graph, fmt == "jsonld-tree")
+        return _jsonld(local, graph, graphs, fmt == "jsonld-tree")
     prefixes = context(iso14649()[0].naming)
-    text = "".join(canonical_lines(local, graph, quads=chosen.quads or graph is None))
+    text = "".join(canonical_lines(local, graph, graphs, quads=chosen.quads or graph is None))
     return _serialize(getattr(ox.RdfFormat, chosen.rdf), text, not chosen.quads, prefixes)
 
 
@@ -266,10 +270,10 @@ def _shallow(triples: _Triples, term: str) -> str:
     return "\n".join(sorted(f"{p} {'[]' if o.startswith('_:') else o}" for p, o in triples.get(term, [])))
 
 
-def _jsonld(store: Store, graph: str | None, tree: bool = False) -> bytes:
+def _jsonld(store: Store, graph: str | None, graphs: list[str] | None, tree: bool = False) -> bytes:
     """JSON-LD compacted with the generated context (``tree``: a readable, framed tree); see
     :mod:`stepnc_graph.exporting.jsonld`."""
     from stepnc_graph.exporting.jsonld import export_jsonld
 
     # a JSON-LD document of the store is its programs (and links), what a PLM system takes
-    return export_jsonld(canonical_quads(store, graph, None if graph else listed_graphs(store)), graph, tree)
+    return export_jsonld(canonical_quads(store, graph, graphs), graph, tree)

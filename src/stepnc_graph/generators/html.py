@@ -42,6 +42,7 @@ class HtmlReferenceGenerator:
         self.n = naming
         self.queries = queries
         self.used_by = self._used_by()
+        self.used_through = self._used_through()
         counts: dict[str, int] = defaultdict(int)
         for e in model.entities.values():
             for a in e.attributes:
@@ -57,6 +58,35 @@ class HtmlReferenceGenerator:
                     if word in self.model and word != e.name:
                         out[word].append((e.name, a.name))
         return {k: sorted(v) for k, v in out.items()}
+
+    def _used_through(self) -> dict[str, list[tuple[str, str, str]]]:
+        """Declaration name -> (entity, attribute, via) for attributes that take it through a
+        supertype or a SELECT that holds it (``turning_technology`` is a value of
+        ``machining_operation.its_technology : technology``): what a direct "used by" misses."""
+        via: dict[str, set[str]] = defaultdict(set)
+        for e in self.model.entities.values():
+            for ancestor in self.model.ancestors(e.name):
+                via[e.name].add(ancestor)
+        for decl in self.model.types.values():
+            if isinstance(decl, SelectType):
+                for member in decl.members:
+                    via[member].add(decl.name)
+        changed = True
+        while changed:  # a member of a SELECT inside a SELECT, a subtype of a SELECT's member, ...
+            changed = False
+            for holders in via.values():
+                more = set().union(*(via.get(h, set()) for h in holders)) - holders
+                if more:
+                    holders |= more
+                    changed = True
+        out: dict[str, list[tuple[str, str, str]]] = {}
+        for name, holders in via.items():
+            direct = set(self.used_by.get(name, []))
+            uses = {(owner, attr, holder) for holder in holders for owner, attr in self.used_by.get(holder, [])
+                    if (owner, attr) not in direct and owner != name}
+            if uses:
+                out[name] = sorted(uses)
+        return out
 
     def linked(self, text: str) -> str:
         """A type as written in EXPRESS with every declared name linked to its section."""
@@ -148,6 +178,11 @@ class HtmlReferenceGenerator:
         if users:
             out.append(f"<p>Used by ({len(users)}): " + ", ".join(
                 f"{_link(owner)}.<code>{escape(attr)}</code>" for owner, attr in users) + "</p>")
+        through = self.used_through.get(decl.name, [])
+        if through:
+            out.append(f"<p>Used through a supertype or SELECT ({len(through)}): " + ", ".join(
+                f"{_link(owner)}.<code>{escape(attr)}</code> (as {_link(holder)})" for owner, attr, holder in through)
+                + "</p>")
         out.append("</section>")
         return out
 

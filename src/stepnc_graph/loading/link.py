@@ -41,6 +41,7 @@ from typing import Any
 
 import pyoxigraph as ox
 
+from stepnc_graph.core.errors import listed_by, option
 from stepnc_graph.core.version import __version__
 from stepnc_graph.loading.common import DCT, PROV, RDFS, load_time
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
@@ -445,11 +446,10 @@ def program_link_graphs(store: Store, graph: str) -> list[str]:
 
 
 def _only_program(store: Store) -> str:
-
     graphs = program_graphs(store)
     if len(graphs) != 1:
-        raise SourceError(f"the store holds {len(graphs)} programs; choose one with --graph (see "
-                          "`stepnc-graph info`)")
+        raise SourceError(f"the store holds {len(graphs)} programs; choose one with {option('graph')} "
+                          f"({listed_by()})")
     return graphs[0]
 
 
@@ -492,7 +492,7 @@ def link(store: Store, mapping: str | Path, graph: str | None = None, *, allow_u
     result.problems = sorted(problems, key=lambda p: p.line)
     if result.problems and not allow_unknown:
         raise LinkError(str(path), f"{len(result.problems)} of {total} rows are malformed or match no single entity "
-                                   f"of <{graph}>; nothing was linked (--allow-unknown links the others)",
+                                   f"of <{graph}>; nothing was linked ({option('allow_unknown', 'True')} links the others)",
                         result.problems)
     lines = list(dict.fromkeys(lines)) + _provenance(target, graph, path, raw)
     result.triples = len(lines)
@@ -507,7 +507,7 @@ def _refuse_other_mapping(store: Store, target: str, path: Path, replace: bool) 
     held = [q.object.value for q in store.quads_for_pattern(node, ox.NamedNode(DCT + "source"), None, node)
             if isinstance(q.object, ox.Literal)]
     if held and str(path.resolve()) not in held:
-        raise SourceError(f"link graph <{target}> holds the links of {held[0]}, not {path.resolve()}; pass --replace "
+        raise SourceError(f"link graph <{target}> holds the links of {held[0]}, not {path.resolve()}; pass {option('replace', 'True')} "
                           "to replace them, or rename the mapping file")
 
 

@@ -183,6 +183,8 @@ class Part21Reader:
         self.text = text
         self.filename = filename
         self.lenient = lenient
+        #: strict mode: (opened, typographic quote or -1, next instance, #id) of a string that ran on
+        self._runaway: tuple[int, int, int, int | None] | None = None
         self.diagnostics: list[Diagnostic] = []
         self.header = Header()
         self.defined = 0
@@ -240,7 +242,12 @@ class Part21Reader:
         return self.text[start: end if end >= 0 else len(self.text)]
 
     def _syntax_error(self, failure: _Failure, p21_id: int | None, recoverable: bool = False) -> Part21SyntaxError:
-        """``recoverable``: the error is in the DATA sections, where lenient reading goes on."""
+        """``recoverable``: the error is in the DATA sections, where lenient reading goes on. An error
+        after a string of the same instance that ran into the next instance is that string's: it is
+        reported where the string opened (see :meth:`_string`)."""
+        runaway = self._runaway
+        if runaway is not None and runaway[3] == p21_id and runaway[0] < failure.pos:
+            failure = self._runaway_failure(*runaway[:3])
         line, column = self.position(failure.pos)
         return Part21SyntaxError(failure.message, self.filename, line, column, self._source_line(failure.pos),
                                  p21_id, failure.expected, recoverable)
@@ -383,8 +390,26 @@ class Part21Reader:
             return _Failure("comment '/*' is never closed", start, ("*/",))
         return _Failure(f"expected {' or '.join(repr(e) for e in expected)}, found {show(tok)}", start, expected)
 
+    def _runaway_failure(self, opened: int, curly: int, swallowed: int) -> _Failure:
+        """A string that ran on into the next instance, told where it opened and what ended it."""
+        next_line, _ = self.position(swallowed)
+        cause = ""
+        if curly >= 0:
+            line, column = self.position(curly)
+            cause = f"; the typographic quote (U+2019) at {line}:{column} probably ends it (--lenient reads it so)"
+        return _Failure(f"the string opened here is not closed before the next instance (line {next_line}){cause}",
+                        opened, ("'",))
+
     def _string(self, tok: str, start: int, end: int, p21_id: int | None) -> tuple[str, int]:
-        """Decode a string token; in lenient mode repair a typographic closing quote."""
+        """Decode a string token; in lenient mode repair a typographic closing quote. In strict mode
+        a string that runs on into the next instance is remembered: the syntax error it causes
+        further on is reported where the string opened (:meth:`_syntax_error`)."""
+        if not self.lenient and "\n" in tok:
+            first_break = tok.index("\n")
+            found = _INSTANCE_START.search(tok, first_break)
+            if found:
+                curly = tok.find(_CURLY, 0, first_break)
+                self._runaway = (start, start + curly if curly > 0 else -1, start + found.start(), p21_id)
         if self.lenient and "\n" in tok:
             first_break = tok.index("\n")
             k = tok.find(_CURLY, 0, first_break)

@@ -53,10 +53,16 @@ from stepnc_graph.core.naming import (
     VOCABULARY_GRAPH,
     derived_graph_iri,
     listed_graphs,
+    program_graphs,
 )
+from stepnc_graph.core.errors import option
 from stepnc_graph.core.outbound import OutboundRefused, refuse_outbound
 from stepnc_graph.core.resources import queries_dir
 from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_queries, vocabulary_status
+
+from stepnc_graph.querying.sparql_errors import explain
+from stepnc_graph.querying.terms import term_warnings
+
 
 if TYPE_CHECKING:
     from stepnc_graph.store.contract import Store
@@ -79,6 +85,8 @@ PREFIXES: dict[str, str] = {
 #: Prefixes used to shorten IRIs in the ``table`` and ``md`` formats only.
 DISPLAY_PREFIXES = {**PREFIXES, "data": DATA_BASE}
 FORMATS = QUERY_RESULT_FORMATS
+#: The formats of CONSTRUCT and DESCRIBE results (RDF): the others give N-Triples for them.
+RDF_FORMATS = ("ttl", "nt")
 PARAM_TYPES = ("class", "iri", "string", "integer", "decimal", "boolean")
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 _PARAM = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\((?P<type>[a-z]+)\)\s*"
@@ -293,6 +301,11 @@ def _guess(value: str) -> str:
     return "string"
 
 
+def _param(name: str, value: str) -> str:
+    """A parameter as the caller gave it: ``--param name=value``, or the keyword ``name='value'``."""
+    return option("param", f"{name}={value}") if option("param").startswith("--") else f"{name}={value!r}"
+
+
 def bind(store: Store, query: Query, given: Mapping[str, str]) -> dict[ox.Variable, ox.NamedNode | ox.Literal]:
     """The terms to substitute: declared parameters (given or default), and undeclared ones by their look."""
     out: dict[ox.Variable, ox.NamedNode | ox.Literal] = {}
@@ -308,13 +321,13 @@ def bind(store: Store, query: Query, given: Mapping[str, str]) -> dict[ox.Variab
         try:
             out[ox.Variable(p.name)] = to_term(store, p.type, value)
         except ValueError as exc:
-            raise QueryError(f"--param {p.name}={value}: {exc}", query.source, p.line, parameter=p.name) from None
+            raise QueryError(f"{_param(p.name, value)}: {exc}", query.source, p.line, parameter=p.name) from None
     for name, value in given.items():
         if query.param(name) is None:
             try:
                 out[ox.Variable(name)] = to_term(store, _guess(value), value)
             except ValueError as exc:
-                raise QueryError(f"--param {name}={value}: {exc}", query.source, parameter=name) from None
+                raise QueryError(f"{_param(name, value)}: {exc}", query.source, parameter=name) from None
     return out
 
 
@@ -498,9 +511,12 @@ class QueryResult:
     def display_rows(self) -> list[list[str]]:
         return [[display(t) for t in row] for row in self.terms]
 
-    def serialize(self, fmt: str, *, csv_raw: bool = False, cell: Callable[[str], str] | None = None) -> bytes:
+    def serialize(self, fmt: str, *, csv_raw: bool = False, cell: Callable[[str], str] | None = None,
+                  width: int | None = None) -> bytes:
         """``csv``/``tsv``/``json``: the SPARQL 1.1 results formats (Oxigraph's writers); ``md``: a
-        Markdown table; ``table``: aligned text. CONSTRUCT results are N-Triples in every format.
+        Markdown table; ``table``: aligned text, fitted to ``width`` columns when given (long cells
+        cut with an ellipsis). CONSTRUCT and DESCRIBE results are RDF: ``ttl`` (Turtle with the
+        query prefixes) or ``nt``, and N-Triples in the other formats; ``ttl``/``nt`` are for them only.
 
         In ``csv`` and ``tsv`` a literal a spreadsheet would run as a formula gets a leading ``'``
         (:func:`formula_guard`); ``csv_raw`` writes the W3C form exactly. ``cell`` is applied to
@@ -510,9 +526,14 @@ class QueryResult:
         if fmt not in FORMATS:
             raise QueryError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
         if self.kind == "graph":
+            if fmt == "ttl":
+                return ox.serialize(self.triples, format=ox.RdfFormat.TURTLE, prefixes=PREFIXES) or b""
             return ox.serialize(self.triples, format=ox.RdfFormat.N_TRIPLES) or b""
+        if fmt in RDF_FORMATS:
+            raise QueryError(f"{fmt} is for CONSTRUCT and DESCRIBE results (RDF); a {self.kind.upper()} result is "
+                             "written as table, csv, tsv, json or md")
         if fmt == "json":
-            return self._json
+            return self._json if self._json.endswith(b"\n") else self._json + b"\n"
         if fmt in ("csv", "tsv"):
             return self._sparql_table(fmt, csv_raw, cell)
         if self.kind == "ask":
@@ -526,9 +547,9 @@ class QueryResult:
             lines = ["| " + " | ".join(self.variables) + " |", "|" + "---|" * len(self.variables)]
             lines += ["| " + " | ".join(markdown(c) for c in row) + " |" for row in rows]
             return ("\n".join(lines) + "\n").encode()
-        widths = [max([len(v)] + [len(r[i]) for r in rows]) for i, v in enumerate(self.variables)]
-        lines = ["  ".join(v.ljust(w) for v, w in zip(self.variables, widths, strict=True)).rstrip()]
-        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
+        widths = _fit([max([len(v)] + [len(r[i]) for r in rows]) for i, v in enumerate(self.variables)], width)
+        lines = ["  ".join(_cut(v, w).ljust(w) for v, w in zip(self.variables, widths, strict=True)).rstrip()]
+        lines += ["  ".join(_cut(c, w).ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
         return ("\n".join(lines) + "\n").encode()
 
     def _sparql_table(self, fmt: str, csv_raw: bool, cell: Callable[[str], str] | None) -> bytes:
@@ -545,39 +566,51 @@ class QueryResult:
         return parsed.serialize(format=target) or b""
 
 
+def _fit(widths: list[int], width: int | None, least: int = 6) -> list[int]:
+    """Column widths that fit ``width`` characters with two spaces between columns: the widest
+    column gives way first, none below ``least`` (a table too wide even so stays too wide)."""
+    widths = list(widths)
+    if width is None:
+        return widths
+    excess = sum(widths) + 2 * (len(widths) - 1) - width
+    while excess > 0:
+        k = max(range(len(widths)), key=lambda i: widths[i])
+        if widths[k] <= least:
+            break
+        widths[k] -= 1
+        excess -= 1
+    return widths
+
+
+def _cut(text: str, width: int) -> str:
+    """``text`` in ``width`` characters: one line, cut with an ellipsis when longer."""
+    text = text.replace("\n", " ")
+    return text if len(text) <= width else text[:max(width - 1, 0)] + "\u2026"
+
+
 # -- running ---------------------------------------------------------------------------------------
 
 
 def _syntax_error(exc: SyntaxError, query: Query) -> QueryError:
-    """A pyoxigraph syntax error as a positioned QueryError (line, column, source line and caret)."""
+    """A pyoxigraph syntax error as a positioned QueryError naming its cause (line, column, source
+    line and caret; :mod:`.sparql_errors` finds the cause)."""
     text = str(exc)
     match = _POSITION.match(text)
     if match is None:
         return QueryError(f"SPARQL syntax error: {text}", query.source)
-    line, column, message = int(match.group(1)), int(match.group(2)), _readable(match.group(3))
-    lines = query.text.splitlines()
-    excerpt = lines[line - 1] if 0 < line <= len(lines) else None
-    return QueryError(f"SPARQL syntax error: {message}", query.source, line, column, excerpt=excerpt)
-
-
-def _readable(message: str) -> str:
-    """Oxigraph's "expected ..." without the character classes it lists (``['A' ..= 'Z' | ...]``)."""
+    cause = explain(query.text, int(match.group(1)), int(match.group(2)), match.group(3))
+    message = cause.message
     if "Prefix not found" in message:
-        return (f"a prefix is not declared (predeclared: {', '.join(p + ':' for p in PREFIXES)}; "
-                "others need PREFIX)")
-    expected = message.removeprefix("expected one of ").removeprefix("expected ")
-    if expected == message:
-        return message
-    words = [w for w in re.split(r",\s*(?=[^,]*(?:$|,))", expected.replace("\n", " "))
-             if w and not w.lstrip().startswith(("[", "|", "'"))]
-    if not words:
-        return "unexpected character here"
-    return f"expected {words[0].strip()}" if len(words) == 1 else f"expected one of {', '.join(w.strip() for w in words)}"
+        message = (f"a prefix is not declared (predeclared: {', '.join(p + ':' for p in PREFIXES)}; "
+                   "others need PREFIX)")
+    lines = query.text.splitlines()
+    excerpt = lines[cause.line - 1] if 0 < cause.line <= len(lines) else None
+    return QueryError(f"SPARQL syntax error: {message}", query.source, cause.line, cause.column, excerpt=excerpt)
 
 
 def dataset(store: Store, graph: str | None, library: bool = False) -> dict[str, Any]:
-    """The query dataset: every graph as default graph and the files' graphs for GRAPH ?program,
-    or one file's graph, its derived layer and the vocabulary.
+    """The query dataset: every graph as default graph and the graphs a user names (programs, link
+    graphs) for GRAPH ?g, or one program's graph, its derived layer and the vocabulary.
 
     A ``library`` query over the whole store gets the store's own named graphs instead. Oxigraph evaluates a ``GRAPH ?g`` pattern over a
     list of named graphs one graph after the other -- a look-up per listed graph and row, so a
@@ -590,7 +623,7 @@ def dataset(store: Store, graph: str | None, library: bool = False) -> dict[str,
         if library:
             return {"use_default_graph_as_union": True}
         return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in listed_graphs(store)]}
-    if graph not in listed_graphs(store):
+    if graph not in program_graphs(store):
         raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     return {"default_graph": [ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],
             "named_graphs": [ox.NamedNode(graph)]}
@@ -601,7 +634,7 @@ def _warnings(store: Store, graph: str | None, vocabulary: bool = True) -> list[
     status = vocabulary_status(store) if vocabulary else "current"
     if status != "current":
         out.append(f"the store's vocabulary graph is {status}: load a file again to refresh it")
-    graphs = [graph] if graph else listed_graphs(store)
+    graphs = [graph] if graph else program_graphs(store)
     missing = [g for g in graphs if not store.has_graph(derived_graph_iri(g))]
     if missing:
         out.append(f"no derived layer for {', '.join(missing)} (loaded by an older stepnc-graph): load it again")
@@ -654,6 +687,8 @@ def execute(store: Store, query: Query, params: Mapping[str, str] | None = None,
                              query.source, declared.line if declared else None, parameter=name) from None
         raise QueryError(f"query failed: {exc}", query.source) from None
     warnings = _warnings(store, graph, vocabulary=query.needs_vocabulary or not is_throwaway(store))
+    if not query.library:  # the library's terms are tested; a user's may be mistyped
+        warnings += term_warnings(store, query.text, PREFIXES, options)
     if isinstance(result, ox.QueryBoolean):
         return QueryResult("ask", boolean=bool(result), warnings=warnings,
                            _json=result.serialize(format=ox.QueryResultsFormat.JSON) or b"")

@@ -20,7 +20,7 @@ import re
 import tempfile
 import time
 import warnings
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.errors import StepncGraphError
+from stepnc_graph.core.errors import StepncGraphError, option
 from stepnc_graph.core.naming import DATA_BASE, P21_NS, instance_id, program_graphs
 from stepnc_graph.store.contract import Store, is_store
 from stepnc_graph.part21.diagnostics import Diagnostic
@@ -173,7 +173,8 @@ def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> Comp
 def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shapes: Sequence[str | Path] = (),
              severity: str = "Info", lenient: bool = True, process: bool = True,
              shapes_dir: Path | None = None, iso_shapes: bool = True,
-             allow_service: bool = False, edition: str | None = None) -> ValidationReport:
+             allow_service: bool = False, edition: str | None = None,
+             progress: Callable[[str], None] | None = None) -> ValidationReport:
     """Validate files (loaded into a throw-away store) or graphs of a store.
 
     ``source`` is a :class:`~stepnc_graph.store.GraphStore`, a
@@ -188,12 +189,15 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
     :class:`~stepnc_graph.part21.Part21SyntaxError` for a Part 21 file that does not parse. A shape whose SPARQL has a ``SERVICE``
     clause is refused (ShapesError) unless ``allow_service``. ``edition`` reads every Part 21 file in
     that edition of ISO 14649 (default: each file's own); the rules applied are its edition's
-    (:mod:`.editions`).
+    (:mod:`.editions`). ``progress(phase)`` hears what a long run is doing (loading with the share
+    read, checking a graph, describing its results).
     """
+    phase = progress or (lambda text: None)
     started = time.perf_counter()
     files = (shape_files(shapes_dir, process) if iso_shapes else []) + [Path(p) for p in extra_shapes]
     if not files:
-        raise ShapesError("no shapes: give --shapes FILE, or leave the ISO 14649 shapes in")
+        raise ShapesError(f"no shapes: give {option('shapes', 'FILE', api='extra_shapes')}, or leave the ISO 14649 "
+                          "shapes in")
     compiled_shapes = compile_shapes(files, shapes_dir)
     shapes, checks = compiled_shapes, compiled_shapes.checks
     level = severity.capitalize()
@@ -207,22 +211,24 @@ def validate(source: object, *, graphs: Sequence[str] | None = None, extra_shape
                                     "validated in place")
         if needs_shapes:
             _add_shapes_graph(source.oxigraph, shapes)
-        report = _validate_store(source, graphs, shapes, list(checks), {})
+        report = _validate_store(source, graphs, shapes, list(checks), {}, phase=phase)
     elif is_store(source):  # reads are requests: the graphs are copied here and checked
         targets = list(graphs) if graphs is not None else program_graphs(source)
+        phase(f"copying {len(targets):,} graph(s) from the endpoint")
         with source.local_copy(targets) as copy:
             if needs_shapes:
                 _add_shapes_graph(copy.oxigraph, shapes)
-            report = _validate_store(copy, targets, shapes, list(checks), {})
+            report = _validate_store(copy, targets, shapes, list(checks), {}, phase=phase)
     else:
         report = _validate_files([Path(p) for p in source], shapes, list(checks), lenient, needs_shapes,  # type: ignore[attr-defined]
-                                 iso_shapes, edition)
+                                 iso_shapes, edition, phase)
     report.seconds = time.perf_counter() - started
     return report.at_least(level)
 
 
 def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Check], lenient: bool,
-                    needs_shapes: bool, iso_shapes: bool, edition: str | None = None) -> ValidationReport:
+                    needs_shapes: bool, iso_shapes: bool, edition: str | None = None,
+                    phase: Callable[[str], None] = lambda text: None) -> ValidationReport:
     """Load the files into a throw-away store (Part 21 by the loader, and JSON-LD program graphs
     when the ISO shapes run; other RDF by :mod:`.rdfdata`) and check each file's graph."""
     from stepnc_graph.loading.loader import load_paths as load
@@ -233,9 +239,11 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         if needs_shapes:
             _add_shapes_graph(store.oxigraph, shapes)
         # shapes read the program graph only; positions come from the load unless a check reads them
+        def read(position: int, total: int) -> None:
+            phase(f"loading {len(programs):,} file(s): {100 * position // max(total, 1)} %")
+
         loaded = load(store, programs, lenient=lenient, derived=False, positions=_reads_positions(checks),
-                      edition=edition) \
-            if programs else []
+                      edition=edition, progress=read) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
         mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
@@ -243,7 +251,7 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         order = {str(p): i for i, p in enumerate(paths)}
         graphs = sorted([(order.get(r.path, 0), r.graph) for r in loaded] + [(order[str(d.path)], d.graph) for d in data])
         return _validate_store(store, [g for _, g in graphs], shapes, checks, diagnostics, mapped,
-                               {d.graph: d for d in data})
+                               {d.graph: d for d in data}, phase)
 
 
 def _rdf_graph(path: Path, taken: set[str]) -> str:
@@ -335,7 +343,8 @@ def _implied_skips(store: ox.Store, loaded: LoadResult) -> frozenset[str]:
 
 def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: CompiledShapes, checks: list[Check],
                     diagnostics: dict[str, list[Diagnostic]], mapped: Mapping[str, LoadResult] | None = None,
-                    data: Mapping[str, RdfLoad] | None = None) -> ValidationReport:
+                    data: Mapping[str, RdfLoad] | None = None,
+                    phase: Callable[[str], None] = lambda text: None) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
     ran = 0
@@ -344,9 +353,11 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
         if not oxstore.contains_named_graph(ox.NamedNode(graph)):
             raise ValidationError(f"no graph {graph} in the store")
         loaded = mapped.get(graph) if mapped else None  # written by this call's Part 21 mapping
+        phase(f"checking {_short_graph(graph)}: {len(checks):,} checks")
         rows, n = run(oxstore, graph, checks, _implied_skips(oxstore, loaded) if loaded else frozenset(),
                       shapes.hierarchy, allow_service=True)  # validate() refused what it must before
         ran += n
+        phase(f"describing {len(rows):,} result(s) of {_short_graph(graph)}")
         describer = _Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
         results += edition_rules(oxstore, graph, describer.results(rows))
         if data and graph in data:
@@ -357,6 +368,11 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
             results += describer.raw_instances()
     results.sort(key=lambda r: r.sort_key)
     return ValidationReport(results, targets, ran)
+
+
+def _short_graph(graph: str) -> str:
+    """A graph's last path segment, for progress lines."""
+    return graph.rstrip("/").rsplit("/", 1)[-1] or graph
 
 
 def _ill_typed_result(graph: str, bad: object) -> Result:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable
+from html import escape
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -61,6 +62,22 @@ class Result:
 _TERMS = ("path_iri", "value_term", "focus_term", "shape_term", "path_term", "path_turtle", "message_terms")
 
 
+@dataclass(frozen=True)
+class RuleCount:
+    """How many results one rule gave: severity, attribute, rule (or component), clause, and the
+    message of its first result."""
+
+    count: int
+    severity: str
+    path: str
+    rule: str
+    clause: str
+    message: str
+
+    def asdict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
 def rank(severity: str) -> int:
     """0 Violation (and custom severities), 1 Warning, 2 Info."""
     return SEVERITIES.index(severity) if severity in SEVERITIES else 0
@@ -99,27 +116,45 @@ class ValidationReport:
 
     # -- renderings -----------------------------------------------------------------------
 
-    def to_json(self) -> str:
-        doc = {"conforms": self.conforms, "passes": self.passes, "graphs": self.graphs, "counts": self.counts(),
-               "results": [r.asdict() for r in self.results]}
-        return json.dumps(doc, indent=2, ensure_ascii=False)
+    def by_rule(self) -> list[RuleCount]:
+        """How many results each rule gave (severity, attribute, rule, clause), most first: a
+        program with one mistake repeated 3,704 times reads as one line here."""
+        groups: dict[tuple[str, str, str, str], list[Result]] = {}
+        for r in self.results:
+            groups.setdefault((r.severity, r.path or "", r.rule or r.component, r.clause or ""), []).append(r)
+        counts = [RuleCount(len(rs), *key, rs[0].message) for key, rs in groups.items()]
+        return sorted(counts, key=lambda c: (-c.count, rank(c.severity), c.rule, c.path))
 
-    def to_text(self) -> str:
-        """Grouped by instance, sorted by line: ``line 23  #20 FACING_ROUGH  allowance: ...  [clause, rule]``.
+    def to_json(self, max_results: int | None = None) -> str:
+        """The report as JSON; ``max_results`` keeps the first results (``omitted`` counts the rest)."""
+        shown = self.results if max_results is None else self.results[:max_results]
+        doc = {"conforms": self.conforms, "passes": self.passes, "graphs": self.graphs, "counts": self.counts(),
+               "by_rule": [c.asdict() for c in self.by_rule()], "results": [r.asdict() for r in shown],
+               "omitted": len(self.results) - len(shown)}
+        return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
+
+    def to_text(self, max_results: int | None = None) -> str:
+        """Grouped by instance, sorted by line: ``line 23  #20 FACING_ROUGH  allowance: ...  [clause, rule]``,
+        then how many results each rule gave. ``max_results`` lists the first results only.
 
         One line per result: a line break inside a message (a value from the program, a shapes
         file's ``sh:message``) is written ``\\n`` (``\\r``), so it can neither split a result
         nor pass for another one. The JSON and Turtle reports keep the text exactly.
         """
         lines: list[str] = []
+        budget = len(self.results) if max_results is None else max_results
         for graph in self.graphs:
             mine = [r for r in self.results if r.graph == graph]
             c = {s: sum(r.severity == s for r in mine) for s in SEVERITIES}
             c["Violation"] += sum(r.severity not in SEVERITIES for r in mine)
             verdict = "conforms" if not mine else "passes (warnings only)" if not c["Violation"] else "does not conform"
             lines.append(f"{graph}: {verdict} "
-                         f"({c['Violation']} violation(s), {c['Warning']} warning(s), {c['Info']} info)")
+                         f"({c['Violation']:,} violation(s), {c['Warning']:,} warning(s), {c['Info']:,} info)")
             for key, group in _by_instance(mine):
+                group = group[:budget]
+                budget -= len(group)
+                if not group:
+                    break
                 line, ident, entity, focus = key
                 if line is None and ident is None:  # not a Part 21 instance: name the node
                     lead = f"  {_short(focus)}"
@@ -132,7 +167,47 @@ class ValidationReport:
                     tag = "" if r.severity == "Violation" else f"{_short(r.severity).lower()}: "
                     text = _one_line(f"{tag}{where}{r.message}{f'  [{cite}]' if cite else ''}")
                     lines.append(f"{lead}  {text}" if i == 0 else f"{' ' * len(lead)}  {text}")
+        shown = len(self.results) if max_results is None else min(max_results, len(self.results))
+        if shown < len(self.results):
+            lines.append(f"... {len(self.results) - shown:,} more result(s) not listed (--max-results {shown:,})")
+        lines += self._rule_lines()
         return "\n".join(lines) + "\n"
+
+    def _rule_lines(self) -> list[str]:
+        """The per-rule summary of the text report, when there is more than one result."""
+        if len(self.results) < 2:
+            return []
+        rules = self.by_rule()
+        width = len(f"{rules[0].count:,}")
+        out = [f"{len(self.results):,} result(s) by rule:"]
+        for c in rules:
+            where = f"{c.path}: " if c.path else ""
+            cite = ", ".join(x for x in (c.clause, c.rule) if x)
+            out.append(_one_line(f"  {c.count:>{width},}  {c.severity.lower():<9} {where}{c.message}"
+                                 f"{f'  [{cite}]' if cite else ''}"))
+        return out
+
+    def __repr__(self) -> str:
+        c = self.counts()
+        return (f"<ValidationReport {'passes' if self.passes else 'fails'}: {c['Violation']:,} violation(s), "
+                f"{c['Warning']:,} warning(s), {c['Info']:,} info in {len(self.graphs)} graph(s)>")
+
+    def _repr_html_(self, max_results: int = 200) -> str:  # Jupyter
+        """A notebook shows the verdict, the counts by rule and the first results as tables."""
+        c = self.counts()
+        verdict = "conforms" if self.conforms else "passes (warnings only)" if self.passes else "does not conform"
+        head = (f"<p><b>{escape(verdict)}</b>: {c['Violation']:,} violation(s), {c['Warning']:,} warning(s), "
+                f"{c['Info']:,} info in {len(self.graphs)} graph(s)</p>")
+        rules = _table(["count", "severity", "path", "rule", "clause", "message"],
+                       [[f"{r.count:,}", r.severity, r.path, r.rule, r.clause, r.message] for r in self.by_rule()])
+        shown = self.results[:max_results]
+        rows = _table(["severity", "line", "#id", "entity", "path", "value", "message", "rule", "clause"],
+                      [[r.severity, "" if r.line is None else str(r.line), "" if r.p21_id is None else f"#{r.p21_id}",
+                        r.entity or "", r.path or "", r.value or "", r.message, r.rule or "", r.clause or ""]
+                       for r in shown])
+        more = (f"<p>... {len(self.results) - len(shown):,} more result(s): <code>report.results</code></p>"
+                if len(shown) < len(self.results) else "")
+        return head + (rules + rows + more if self.results else "")
 
     def to_turtle(self) -> str:
         """The standard SHACL validation report."""
@@ -161,6 +236,13 @@ class ValidationReport:
                 parts.append(f"p21:line {r.line}")
             out.append(" ;\n  sh:result [ " + " ;\n      ".join(parts) + " ]")
         return "\n".join(out) + " .\n"
+
+
+def _table(columns: list[str], rows: list[list[str]]) -> str:
+    """An HTML table, every cell escaped (values come from the program and the shapes files)."""
+    head = "".join(f"<th>{escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{escape(v)}</td>" for v in row) + "</tr>" for row in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
 def _term(value: str) -> str:

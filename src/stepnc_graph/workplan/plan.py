@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.errors import StepncGraphError
-from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri, listed_graphs
+from stepnc_graph.core.errors import StepncGraphError, listed_by, option
+from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri, program_graphs
 from stepnc_graph.querying.query import PREFIXES
 
 if TYPE_CHECKING:
@@ -356,11 +356,11 @@ def build_plan(store: Store, graph: str | None = None, *, network: bool = True) 
     from stepnc_graph.graphs.vocabulary_graph import vocabulary_for_queries
 
     vocabulary_for_queries(store)
-    programs = listed_graphs(store)
+    programs = program_graphs(store)
     if graph is None:
         if len(programs) != 1:
-            raise PlanError(f"the store holds {len(programs)} programs; choose one with --graph "
-                            "(see `stepnc-graph info`)")
+            raise PlanError(f"the store holds {len(programs)} programs; choose one with {option('graph')} "
+                            f"({listed_by()})")
         graph = programs[0]
     if graph not in programs:
         raise PlanError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
@@ -482,7 +482,7 @@ class PlanPicture:
     the block it starts (``<g class="tool-change">``).
     """
 
-    BOX_W, BOX_H, GAP, LANE_H, LEFT, TOP = 120, 46, 14, 92, 150, 70
+    BOX_W, BOX_H, GAP, LANE_H, LEFT, TOP = 120, 62, 14, 104, 150, 70
     #: at most this many boxes a row, and the most steps shown one box each (beyond: blocks)
     ROW, DETAIL = 16, 48
     #: tools the legend names at most (the blocks' tooltips name theirs)
@@ -503,6 +503,15 @@ class PlanPicture:
         n = len(plan.steps)
         #: boxes a row: rows as even as they can be (13 steps: one row, 20: two of 10)
         self.row = -(-n // -(-n // self.ROW)) if n else 1
+
+    def _lane_workplans(self) -> dict[str, str]:
+        """Setup lane -> the workplans its steps run in (their its_id), in order of first use."""
+        out: dict[str, list[str]] = {}
+        for s in self.plan.steps:
+            names = out.setdefault(s.setup.label if s.setup else "(no setup)", [])
+            if s.workplan is not None and s.workplan.label and s.workplan.label not in names:
+                names.append(s.workplan.label)
+        return {lane: ", ".join(names) for lane, names in out.items()}
 
     def colour(self, step: Step) -> str:
         if step.tool is None:
@@ -571,12 +580,16 @@ class PlanPicture:
         height = legend_y + 24 * (min(len(self.tools), self.LEGEND + 1) + 2)
         out = self._head(width, height, f"{len(steps)} workingsteps, {len(self.plan.tool_changes())} tool changes, "
                                         f"{len(self.lanes)} setup(s); arcs join roughing and finishing on a feature")
+        plans = self._lane_workplans()
         for r in range(rows):
             for i, lane in enumerate(self.lanes):
                 top = self.TOP + r * self.row_height() + i * self.LANE_H
-                out.append(f'<g class="lane" data-setup="{escape(lane)}"><rect x="4" y="{top}" width="{width - 8}" '
+                names = "".join(f'<text x="10" y="{top + self.LANE_H // 2 + 14 * (k + 1)}" fill="#444">{escape(t)}'
+                                "</text>" for k, t in enumerate(_wrap(plans.get(lane, ""), 22, 2)) if t)
+                out.append(f'<g class="lane" data-setup="{escape(lane)}" data-workplan="{escape(plans.get(lane, ""))}">'
+                           f'<rect x="4" y="{top}" width="{width - 8}" '
                            f'height="{self.LANE_H - 6}" fill="{"#f7f7f7" if i % 2 == 0 else "#efefef"}"/>'
-                           f'<text x="10" y="{top + self.LANE_H // 2}" font-weight="bold">{escape(lane)}</text></g>')
+                           f'<text x="10" y="{top + self.LANE_H // 2}" font-weight="bold">{escape(lane)}</text>{names}</g>')
         for k, (a, b) in enumerate(zip(steps, steps[1:], strict=False)):
             x1, y1 = self.x(k) + self.BOX_W, self.y(k, a) + self.BOX_H // 2
             x2, y2 = self.x(k + 1), self.y(k + 1, b) + self.BOX_H // 2
@@ -615,17 +628,24 @@ class PlanPicture:
         return "\n".join(out) + "\n"
 
     def box(self, s: Step, x: int, y: int) -> str:
-        head = f"{s.order}. {s.workingstep.label}"
-        name = head if len(head) <= 18 else head[:17] + "…"
+        """A workingstep's box: its full label (wrapped, never cut), #id and kind, and its operation."""
         ink = _ink(self.colour(s))
-        detail = " ".join(filter(None, [s.workingstep.ref, s.kind]))
-        title = (f"{s.order}. {s.workingstep.label} {s.workingstep.ref}; tool {s.tool.label if s.tool else '-'} "
-                 f"{s.tool.ref if s.tool else ''}; features {', '.join(f.label + ' ' + f.ref for f in s.features)}")
+        label = _wrap(f"{s.order}. {s.workingstep.label}", 19, 2)
+        detail = [" ".join(filter(None, [s.workingstep.ref, s.kind]))]
+        if s.operation is not None:
+            detail.append(s.operation.cls)
+        title = (f"{s.order}. {s.workingstep.label} {s.workingstep.ref}; operation "
+                 f"{s.operation.label + ' ' + s.operation.cls if s.operation else '-'}; tool "
+                 f"{s.tool.label if s.tool else '-'} {s.tool.ref if s.tool else ''}; features "
+                 f"{', '.join(f.label + ' ' + f.ref for f in s.features)}")
+        lines = [f'<text x="{x + 6}" y="{y + 14 + 13 * k}" fill="{ink}" font-weight="bold">{escape(t)}</text>'
+                 for k, t in enumerate(label)]
+        lines += [f'<text x="{x + 6}" y="{y + 14 + 13 * (len(label) + k)}" fill="{ink}">{escape(_wrap(t, 20, 1)[0])}'
+                  "</text>" for k, t in enumerate(detail)]
         return (f'<g class="workingstep" data-order="{s.order}" data-ref="{escape(s.workingstep.ref)}" '
                 f'data-tool="{escape(s.tool.ref) if s.tool else ""}"><title>{escape(title)}</title>'
                 f'<rect x="{x}" y="{y}" width="{self.BOX_W}" height="{self.BOX_H}" rx="5" fill="{self.colour(s)}" '
-                f'stroke="#333"/><text x="{x + 6}" y="{y + 16}" fill="{ink}" font-weight="bold">{escape(name)}</text>'
-                f'<text x="{x + 6}" y="{y + 34}" fill="{ink}">{escape(detail)}</text></g>')
+                f'stroke="#333"/>{"".join(lines)}</g>')
 
     # -- one box per block of steps with one setup and one tool -----------------------------------
 
@@ -692,6 +712,18 @@ class PlanPicture:
                 f'{stroke}/><text x="{x + 6}" y="{y + 16}" fill="{ink}" font-weight="bold">{escape(steps)}</text>'
                 f'<text x="{x + 6}" y="{y + 34}" fill="{ink}">{escape(cut(tool))}</text>'
                 f'<text x="{x + 6}" y="{y + 52}" fill="{ink}">{escape(cut(setup))}</text></g>')
+
+
+def _wrap(text: str, width: int, lines: int) -> list[str]:
+    """``text`` in at most ``lines`` lines of ``width`` characters, broken at spaces; the last line
+    ends with an ellipsis only when even that is not enough (the box's tooltip has it all)."""
+    import textwrap
+
+    out = textwrap.wrap(text, width, break_long_words=True) or [""]
+    if len(out) > lines:
+        rest = " ".join(out[lines - 1:])
+        out = out[:lines - 1] + [rest[:width - 1] + "\u2026"]
+    return out
 
 
 def png(svg: str) -> bytes:
