@@ -114,23 +114,32 @@ def test_info_lists_the_programs_as_the_embedded_store_does(loaded: tuple[Live, 
 @pytest.mark.parametrize("name", [q.name for q in library()])
 def test_every_library_query_gives_the_embedded_rows(loaded: tuple[Live, str], name: str) -> None:
     live, local = loaded
-    if live.kind == "virtuoso" and name in VIRTUOSO_DIFFERS:
-        pytest.xfail(VIRTUOSO_DIFFERS[name])
     with live.open() as store, sg.open_store(local, readonly=True) as embedded:
-        assert query(store, name, **PARAMS.get(name, {})).rows == query(embedded, name, **PARAMS.get(name, {})).rows
-        graph = DATA + "pass_seed_annex_e.stp"  # one program: its graph, derived layer and the vocabulary
-        assert query(store, name, graph=graph, **PARAMS.get(name, {})).rows == \
-            query(embedded, name, graph=graph, **PARAMS.get(name, {})).rows
+        for graph in (None, DATA + "pass_seed_annex_e.stp"):  # whole store; one program's graph
+            remote = query(store, name, graph=graph, **PARAMS.get(name, {}))
+            here = query(embedded, name, graph=graph, **PARAMS.get(name, {}))
+            named = [w for w in remote.warnings if "GROUP_CONCAT" in w]
+            if live.kind == "virtuoso" and name in LISTS:
+                # the values are the same, their order in a list cell is the store's: said, not hidden
+                assert named and "Virtuoso/" in named[0] and f"?{LISTS[name]}" in named[0]
+                assert _lists_sorted(remote.rows, LISTS[name]) == _lists_sorted(here.rows, LISTS[name])
+            else:
+                assert named == []
+                assert remote.rows == here.rows
 
 
-#: library queries Virtuoso 7.2 answers otherwise than SPARQL 1.1 says (found by this module)
-VIRTUOSO_DIFFERS = {
-    "setup-sheet": "GROUP_CONCAT does not keep the order of an ordered sub-SELECT on Virtuoso (SPARQL does not "
-                   "promise it)",
-    "tools-shared-across-setups": "GROUP_CONCAT does not keep the order of an ordered sub-SELECT on Virtuoso",
-    "instance-counts": "Virtuoso's rdfs:subClassOf* with an OPTIONAL gives other superclasses",
-    "operations-per-feature": "Virtuoso drops a row of the nested sub-SELECT joins",
-}
+#: the library queries with a list column (GROUP_CONCAT), which Virtuoso 7.2 fills in an order
+#: of its own (SPARQL leaves the order to the store)
+LISTS = {"setup-sheet": "workingsteps", "tools-shared-across-setups": "setup_list"}
+
+
+def _lists_sorted(rows: list[dict[str, Any]], column: str) -> list[dict[str, Any]]:
+    return [{**row, column: sorted(str(row[column]).split(", "))} for row in rows]
+
+
+def test_the_library_lists_are_where_the_store_orders_them() -> None:
+    # LISTS names every library query with a GROUP_CONCAT: a new one must be checked on Virtuoso
+    assert sorted(q.name for q in library() if "GROUP_CONCAT" in q.text.upper()) == sorted(LISTS)
 
 
 @pytest.mark.parametrize("args", [["info", "--format", "json"], ["plan", "--graph", DATA + "shaft_two_setups.stp",

@@ -199,8 +199,10 @@ class _Fake(http.server.BaseHTTPRequestHandler):
 
 
 @contextmanager
-def fake_endpoint(answer: Any) -> Iterator[tuple[str, list[tuple[str, str, dict[str, str]]]]]:
-    handler = type("Handler", (_Fake,), {"answer": staticmethod(answer), "seen": []})
+def fake_endpoint(answer: Any, server: str | None = None) -> Iterator[tuple[str, list[tuple[str, str, dict[str, str]]]]]:
+    """``server``: the Server header it answers with (default: http.server's own)."""
+    named = {} if server is None else {"server_version": server, "sys_version": ""}
+    handler = type("Handler", (_Fake,), {"answer": staticmethod(answer), "seen": [], **named})
     httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     httpd.daemon_threads = True
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
@@ -350,3 +352,22 @@ def test_parameters_give_the_same_rows_embedded_and_remote(server: OxigraphServe
         assert embedded.returncode == 0 and remote.returncode == 0, (args, embedded.stderr, remote.stderr)
         assert embedded.stdout.count("\n") > 1, (args, embedded.stdout)  # rows, not just the header
         assert sorted(remote.stdout.splitlines()) == sorted(embedded.stdout.splitlines()), args
+
+
+@pytest.mark.parametrize(("server", "ordered"), [("Virtuoso/07.20.3229 (Linux) x86_64-pc-linux-gnu", False),
+                                                 ("oxigraph/0.4.11", True), (None, True)])
+def test_a_store_whose_group_concat_keeps_no_order_is_named_in_the_query_warnings(server: str | None,
+                                                                                   ordered: bool) -> None:
+    from stepnc_graph.querying.query import concat_order_warnings
+
+    text = 'SELECT (GROUP_CONCAT(?x; separator=", ") AS ?xs) WHERE { { SELECT ?x WHERE { ?s ?p ?x } ORDER BY ?x } }'
+    with fake_endpoint(empty_store, server) as (url, _), open_remote(url) as store:
+        assert store.capabilities.ordered_group_concat is ordered
+        warnings = concat_order_warnings(store, text)
+        if ordered:
+            assert warnings == []
+        else:
+            assert len(warnings) == 1 and warnings[0].startswith("Virtuoso/07.20.3229") and "?xs" in warnings[0]
+        assert concat_order_warnings(store, "SELECT ?x WHERE { ?s ?p ?x }") == []
+    with sg.open_store(memory=True) as embedded:
+        assert embedded.server is None and concat_order_warnings(embedded, text) == []

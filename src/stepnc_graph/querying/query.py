@@ -646,6 +646,27 @@ def _warnings(store: Store, graph: str | None, vocabulary: bool = True) -> list[
     return out
 
 
+#: a GROUP_CONCAT aggregate and the variable it is bound to
+_GROUP_CONCAT = re.compile(r"GROUP_CONCAT\s*\((?:[^()]|\([^()]*\))*\)\s*AS\s+[?$](\w+)", re.IGNORECASE)
+
+
+def concat_order_warnings(store: Store, text: str) -> list[str]:
+    """A warning for a query whose ``GROUP_CONCAT`` lists come out in the store's own order.
+
+    SPARQL leaves the order of a GROUP_CONCAT's values to the store (section 18.5.1.7); the
+    library orders its lists by an ordered sub-SELECT, which the embedded store keeps and a
+    store without :attr:`~stepnc_graph.store.contract.Capabilities.ordered_group_concat` does
+    not: the same values, perhaps in another order, must not pass for the ordered answer."""
+    if store.capabilities.ordered_group_concat:
+        return []
+    columns = sorted(set(_GROUP_CONCAT.findall(text)))
+    if not columns:
+        return []
+    return [f"{store.server or 'this store'} does not keep the order of the values a GROUP_CONCAT joins (SPARQL "
+            f"leaves it to the store): the values in {', '.join('?' + c for c in columns)} are right, their order "
+            "inside each cell may not be the one the query asks for"]
+
+
 def _current_layers(store: Store) -> set[str]:
     """The files whose derived layer is of the version the library expects (derive.LAYER_VERSION)."""
     from stepnc_graph.loading.derive import LAYER_VERSION
@@ -689,6 +710,7 @@ def execute(store: Store, query: Query, params: Mapping[str, str] | None = None,
     warnings = _warnings(store, graph, vocabulary=query.needs_vocabulary or not is_throwaway(store))
     if not query.library:  # the library's terms are tested; a user's may be mistyped
         warnings += term_warnings(store, query.text, PREFIXES, options)
+    warnings += concat_order_warnings(store, query.text)
     if isinstance(result, ox.QueryBoolean):
         return QueryResult("ask", boolean=bool(result), warnings=warnings,
                            _json=result.serialize(format=ox.QueryResultsFormat.JSON) or b"")

@@ -826,6 +826,11 @@ class GraphStore:
         assert self.path is not None
         return str(self.path.resolve())
 
+    @property
+    def server(self) -> None:
+        """None: the embedded Oxigraph database answers (see :meth:`Store.server`)."""
+        return None
+
     def maintenance(self) -> Maintenance:
         """Deleted quads waiting for a compaction and bytes on disk (0 and 0 in memory)."""
         return Maintenance(self.deleted_quads, self.disk_bytes())

@@ -30,13 +30,17 @@ class Capabilities:
     copies them with SPARQL Update inside the store. ``local_reads``: reading node by node
     (:meth:`Store.quads_for_pattern`, :attr:`Store.oxigraph`) is cheap; elsewhere the graphs
     are copied first (:meth:`Store.local_copy`). ``compactable``: :meth:`Store.compact` gives
-    disk space back.
+    disk space back. ``ordered_group_concat``: a ``GROUP_CONCAT`` lists its values in the order
+    they reach it (an ordered sub-SELECT's order): SPARQL 1.1 (section 18.5.1.7) leaves that order
+    to the store; Oxigraph keeps it, Virtuoso 7 does not, so a query result whose lists differ
+    is named to the user (:func:`stepnc_graph.querying.query.run`), not passed on silently.
     """
 
     persistent: bool
     blank_node_writes: bool
     local_reads: bool
     compactable: bool
+    ordered_group_concat: bool = True
 
 
 @dataclass(frozen=True)
@@ -91,6 +95,13 @@ class Store(Protocol):
     @property
     def location(self) -> str:
         """Where the store is, for users: its absolute directory, its endpoint, or "memory"."""
+        ...
+
+    @property
+    def server(self) -> str | None:
+        """The software answering for the store as it names itself (an endpoint's HTTP ``Server``
+        header, once it has answered), for messages about what it does otherwise; None when
+        embedded or unknown."""
         ...
 
     def maintenance(self) -> Maintenance | None:
