@@ -522,43 +522,48 @@ def excluded_classes(g: ShapesGraph, shape: str) -> frozenset[str] | None:
 
 class ListComponent(ValueComponent):
     """sh:and, sh:or, sh:xone (4.6.2-4.6.4): each value node conforms to all, some, exactly one
-    of the listed shapes."""
+    of the listed shapes. A subclass says how the members' tests combine, what an empty list
+    gives and, for the message, which of the shapes the node must conform to."""
+
+    empty: str = "false"
+    wording: str = ""
 
     def members(self, c: Compiling, use: Use, x: str) -> list[str]:
         return [c.conforms(s, x) for s in c.g.items(use.args[self.key])]
 
-
-class AndComponent(ListComponent):
-    key, iri = "and", f"{SH}AndConstraintComponent"
+    def combined(self, tests: list[str]) -> str:
+        raise NotImplementedError
 
     def ok(self, c: Compiling, use: Use, x: str) -> str:
         m = self.members(c, use, x)
-        return "(" + " && ".join(m) + ")" if m else "true"
+        return self.combined(m) if m else self.empty
 
     def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
-        return f"must conform to every listed shape{_found(value)}"
+        return f"must conform to {self.wording}{_found(value)}"
+
+
+class AndComponent(ListComponent):
+    key, iri = "and", f"{SH}AndConstraintComponent"
+    empty, wording = "true", "every listed shape"
+
+    def combined(self, tests: list[str]) -> str:
+        return "(" + " && ".join(tests) + ")"
 
 
 class OrComponent(ListComponent):
     key, iri = "or", f"{SH}OrConstraintComponent"
+    wording = "one of the listed shapes"
 
-    def ok(self, c: Compiling, use: Use, x: str) -> str:
-        m = self.members(c, use, x)
-        return "(" + " || ".join(m) + ")" if m else "false"
-
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
-        return f"must conform to one of the listed shapes{_found(value)}"
+    def combined(self, tests: list[str]) -> str:
+        return "(" + " || ".join(tests) + ")"
 
 
 class XoneComponent(ListComponent):
     key, iri = "xone", f"{SH}XoneConstraintComponent"
+    wording = "exactly one of the listed shapes"
 
-    def ok(self, c: Compiling, use: Use, x: str) -> str:
-        m = self.members(c, use, x)
-        return f"(({' + '.join(f'IF({t}, 1, 0)' for t in m)}) = 1)" if m else "false"
-
-    def message(self, g: ShapesGraph, args: Mapping[str, str], value: str | None, shape: str = "") -> str:
-        return f"must conform to exactly one of the listed shapes{_found(value)}"
+    def combined(self, tests: list[str]) -> str:
+        return f"(({' + '.join(f'IF({t}, 1, 0)' for t in tests)}) = 1)"
 
 
 # -- 4.7 shape-based ----------------------------------------------------------------------------------
