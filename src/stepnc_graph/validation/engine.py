@@ -57,6 +57,7 @@ from stepnc_graph.validation.shapes import (
     UnsupportedShapes,
     literal_text,
     sh,
+    subclass_closure,
 )
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
@@ -380,14 +381,7 @@ class Hierarchy:
     def closure(self, cls: str) -> frozenset[str]:
         found = self._closures.get(cls)
         if found is None:
-            out = {cls}
-            stack = [cls]
-            while stack:
-                for sub in self.subclasses.get(stack.pop(), ()):
-                    if sub not in out:
-                        out.add(sub)
-                        stack.append(sub)
-            found = self._closures[cls] = frozenset(out)
+            found = self._closures[cls] = frozenset(subclass_closure(self.subclasses, cls))
         return found
 
     def typed(self, classes: frozenset[str]) -> list[str]:

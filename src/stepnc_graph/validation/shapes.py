@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import pyoxigraph as ox
@@ -39,6 +39,18 @@ class IllFormedShapes(ShapesError):
 
 class UnsupportedShapes(ShapesError):
     """Well-formed SHACL this engine refuses to run rather than answer wrongly (each case documented)."""
+
+
+def subclass_closure(subclasses: Mapping[str, Iterable[str]], cls: str) -> set[str]:
+    """``cls`` and every class below it, ``subclasses`` giving each class's direct subclasses."""
+    out = {cls}
+    stack = [cls]
+    while stack:
+        for sub in subclasses.get(stack.pop(), ()):
+            if sub not in out:
+                out.add(sub)
+                stack.append(sub)
+    return out
 
 
 class ShapesGraph:
@@ -146,14 +158,7 @@ class ShapesGraph:
 
     def closure(self, cls: str) -> set[str]:
         """``cls`` and every class below it through rdfs:subClassOf."""
-        out = {cls}
-        stack = [cls]
-        while stack:
-            for sub in self.subclasses.get(stack.pop(), ()):
-                if sub not in out:
-                    out.add(sub)
-                    stack.append(sub)
-        return out
+        return subclass_closure(self.subclasses, cls)
 
     def typed_individuals(self, classes: Iterable[str]) -> set[str]:
         """Individuals the data files type with one of ``classes`` (enumeration items); IRIs only."""
