@@ -58,7 +58,6 @@ from typing import Any
 
 import pyoxigraph as ox
 
-from stepnc_graph.core.formats import INPUT_FORMATS
 from stepnc_graph.core.version import __version__
 from stepnc_graph.loading.common import DCT, PROV, RDFS, LoadResult, Progress, load_time
 from stepnc_graph.mapping.editions import EDITIONS, edition_plans
@@ -68,7 +67,6 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.loading.common import Source, SourceError
 from stepnc_graph.store import Store
 
-SUFFIXES = next(f.suffixes for f in INPUT_FORMATS if f.name == "jsonld")
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
 XSD = "http://www.w3.org/2001/XMLSchema#"
 OWL_SAME_AS = "http://www.w3.org/2002/07/owl#sameAs"
@@ -122,11 +120,6 @@ class JsonLdError(SourceError):
     def asdict(self) -> dict[str, Any]:
         return {"type": "JsonLdError", "file": self.file, "line": self.line, "column": self.column,
                 "pointer": self.pointer, "message": self.message}
-
-
-def is_jsonld(path: Path | str) -> bool:
-    """Whether a load input is read as JSON-LD (by its name: ``.jsonld``, any case)."""
-    return Path(path).suffix.lower() in SUFFIXES
 
 
 # -- how a message shows the document's text ------------------------------------------------------

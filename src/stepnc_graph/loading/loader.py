@@ -365,17 +365,6 @@ def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | 
     yield from (c for c in _Load.of_file(path, lenient, base_iri, None, edition).chunks() if isinstance(c, str))
 
 
-def load_file(store: Store, path: str | Path, *, lenient: bool = False, base_iri: str | None = None,
-              progress: Progress | None = None, edition: str | None = None) -> LoadResult:
-    """Load one Part 21 file as the named graph ``base_iri`` (default: from the file name).
-
-    Raises :class:`~stepnc_graph.part21.Part21SyntaxError` in strict mode when
-    the file does not parse (and ``OSError`` when it cannot be read); the store
-    is then unchanged. Loading the same file again replaces its graph.
-    """
-    return _run(store, _Load.of_file(path, lenient, base_iri, progress, edition))
-
-
 def load_source(store: Store, source: Source, *, lenient: bool = False,
                 progress: Progress | None = None, derived: bool = True, positions: bool = True,
                 edition: str | None = None) -> LoadResult:

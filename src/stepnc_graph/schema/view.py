@@ -193,8 +193,6 @@ class SchemaModel:
         a, b = name.lower(), of.lower()
         return a == b or b in self.ancestors(a)
 
-    def is_abstract(self, name: str) -> bool:
-        return self.entity(name).abstract
 
     # -- attributes -------------------------------------------------------
 

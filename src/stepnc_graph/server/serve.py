@@ -27,7 +27,6 @@ from __future__ import annotations
 import http.client
 import http.server
 import ipaddress
-import os
 import re
 import shutil
 import signal
@@ -622,9 +621,3 @@ def is_loopback(host: str) -> bool:
     return host in LOOPBACK
 
 
-def pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except OSError:
-        return False
-    return True

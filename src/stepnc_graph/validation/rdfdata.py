@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import calendar
 import re
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
@@ -173,6 +172,3 @@ def load_rdf(store: ox.Store, path: Path, graph: str) -> RdfLoad:
     return result
 
 
-def ill_typed_lines(load: RdfLoad) -> Iterator[str]:
-    for bad in load.ill_typed:
-        yield f"{bad.subject} {bad.predicate} {bad.literal}"
