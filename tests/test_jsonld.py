@@ -256,6 +256,22 @@ def test_part21_rdf_jsonld_rdf_part21_round_trip(path: Path, fmt: str, tmp_path:
         r.graph.encode(), back.graph.encode())
 
 
+def test_an_unreadable_instance_typed_only_unreadable_is_still_counted(tmp_path: Path) -> None:
+    # found by bench/fuzz_load.py (input 1016029): a flipped byte made the p21:RawInstance type of
+    # an unreadable instance another IRI; the document still loads (its text is kept, it is
+    # unreadable), so the instance must be counted, as raw
+    store, r = loaded(FIXTURES / "p21" / "fail_seed_annex_e.stp")
+    assert r.unreadable > 0
+    text = sg.export(store, "jsonld", r.graph).decode()
+    both = re.compile(r'"p21:RawInstance",(\s*)"p21:UnreadableInstance"')
+    assert both.search(text)
+    path = tmp_path / "damaged.jsonld"
+    path.write_text(both.sub(r'"pp21:RawInstance",\1"p21:UnreadableInstance"', text), encoding="utf-8")
+    [back] = sg.load(store, [path], base_iri=r.graph + "-back")
+    numbered = len(list(store.query(f"SELECT ?s WHERE {{ GRAPH <{back.graph}> {{ ?s <{P21_NS}id> ?id }} }}")))
+    assert back.instances == numbered == r.instances and back.raw == r.raw
+
+
 def test_a_jsonld_file_loads_as_the_graph_it_names_and_keeps_provenance(tmp_path: Path) -> None:
     store, r = loaded()
     exported = tmp_path / "sent_back.jsonld"

@@ -780,10 +780,15 @@ def _moved(quads: list[ox.Quad], old: str | None, new: str) -> list[ox.Quad]:
     return [ox.Quad(move(q.subject), q.predicate, move(q.object), graph) for q in quads]
 
 
+#: the classes of instances kept as their text
+_RAW = frozenset({P21_NS + "RawInstance", P21_NS + "UnreadableInstance"})
+
+
 @lru_cache(maxsize=1)
 def _instance_classes() -> frozenset[str]:
-    """Every class an instance can have: any edition's entity classes, and a raw instance's."""
-    return frozenset(c for e in EDITIONS for c in edition_plans(e).by_class) | {P21_NS + "RawInstance"}
+    """Every class an instance can have: any edition's entity classes, a raw instance's and an
+    unreadable one's (which is raw too; either type alone makes a numbered node an instance)."""
+    return frozenset(c for e in EDITIONS for c in edition_plans(e).by_class) | _RAW
 
 
 class JsonLdLoad:
@@ -891,7 +896,7 @@ class JsonLdLoad:
         s, path = f"<{self.graph}>", self.source.path
         now = f'"{load_time().isoformat(timespec="seconds")}"^^<{XSD}dateTime>'
         activity, tool = f"<{instance_prefix(self.graph)}load>", f"<{TOOL_IRI}{__version__}>"
-        raw_count = sum(P21_NS + "RawInstance" in classes for classes in types.values())
+        raw_count = sum(not _RAW.isdisjoint(classes) for classes in types.values())
         where = str(path.resolve()) if path is not None else self.source.name
         out = [f"{s} <{RDF_TYPE}> <{P21_NS}ExchangeStructure> .\n", f"{s} <{RDF_TYPE}> <{PROV}Entity> .\n",
                f"{s} <{DCT}source> {ox.Literal(where)} .\n",
@@ -924,7 +929,7 @@ class JsonLdLoad:
         lines = [f"{t.subject} {t.predicate} {t.object} .\n" for t in program]
         lines += self.aliases(types, program) + self.metadata(types, earlier)
         self.result.instances = self.result.defined = len(types)
-        self.result.raw = sum(P21_NS + "RawInstance" in classes for classes in types.values())
+        self.result.raw = sum(not _RAW.isdisjoint(classes) for classes in types.values())
         return list(dict.fromkeys(lines))
 
     def _check_writable(self, program: list[ox.Quad], doc: Any) -> None:
