@@ -251,6 +251,32 @@ def test_load_summary_uses_thousands_separators_and_gives_the_rate(tmp_path: Pat
     assert f" {count} instances" not in done.stdout
 
 
+def test_load_summary_states_the_store_size_on_disk(tmp_path: Path) -> None:
+    import json
+
+    from stepnc_graph.store import directory_bytes
+
+    store_dir = tmp_path / "store"
+    done = CliRunner().invoke(main, ["load", "--store", str(store_dir), str(EXAMPLE)])
+    assert done.exit_code == 0, done.output
+    size = directory_bytes(store_dir)
+    assert done.stdout.splitlines()[-1] == f"store {store_dir.resolve()}: {size / 1e6:,.1f} MB on disk"
+    done = CliRunner().invoke(main, ["load", "--store", str(store_dir), str(EXAMPLE), "--format", "json"])
+    report = json.loads(done.stdout)
+    assert report["store"] == str(store_dir.resolve()) and report["disk_bytes"] == directory_bytes(store_dir)
+    done = CliRunner().invoke(main, ["load", "--memory", str(EXAMPLE), "--format", "json"])
+    assert json.loads(done.stdout)["disk_bytes"] is None and json.loads(done.stdout)["store"] == "memory"
+    done = CliRunner().invoke(main, ["load", "--memory", str(EXAMPLE)])
+    assert "on disk" not in done.stdout
+
+
+def test_sizes_for_people_use_decimal_units() -> None:
+    from stepnc_graph.cli.store import human_bytes
+
+    assert [human_bytes(n) for n in (812, 1000, 12_345_678, 1_400_000_000, 3 * 10**15)] == [
+        "812 B", "1.0 kB", "12.3 MB", "1.4 GB", "3,000.0 TB"]
+
+
 # -- 9: --graph and unload take a unique end of a graph IRI, and suggest on a miss ------------------
 
 
