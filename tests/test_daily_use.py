@@ -3,6 +3,8 @@ people read. Each test here failed on the code before its fix."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -357,6 +359,40 @@ def test_a_notebook_reader_does_not_block_a_load(tmp_path: Path) -> None:
     with sg.open_store(store_dir, readonly=True) as reader:
         assert CliRunner().invoke(main, ["load", *saved, str(DAMAGED), "--lenient"]).exit_code == 1
         assert len(sg.query(reader, "tool-changes")) == 2
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "stepnc_graph.cli", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_open_store_reads_without_the_lock_until_it_writes(tmp_path: Path) -> None:
+    """``sg.open_store(path)`` in a notebook: CLI loads go on while it reads; its own load takes the
+    writer's lock then, from the newest published state, and holds it until it is closed."""
+    store_dir = tmp_path / "store"
+    assert _cli("load", "--store", str(store_dir), str(EXAMPLE)).returncode == 0
+    other = DATA_BASE + "shaft_damaged.stp"
+    with sg.open_store(store_dir) as notebook:
+        held = notebook.oxigraph  # a handle on the generation it reads
+        seen = notebook.generation
+        done = _cli("load", "--store", str(store_dir), "--lenient", str(DAMAGED))
+        assert done.returncode == 1, done.stderr  # not busy: the notebook only reads
+        assert len(sg.query(notebook, "tool-changes")) == 2  # still reads (the generation it opened)
+        sg.load(notebook, [EXAMPLE], base_iri="urn:notebook")  # takes the lock now
+        assert {g.graph for g in sg.info(notebook)} == {SHAFT, other, "urn:notebook"}  # the CLI's load kept
+        assert len(held) > 0 and (store_dir / str(seen)).is_dir()  # not collected under its handle
+        busy = _cli("load", "--store", str(store_dir), str(EXAMPLE))
+        assert busy.returncode == 2 and "is being written by" in busy.stderr, busy.stderr
+    del held
+    assert _cli("load", "--store", str(store_dir), str(EXAMPLE)).returncode == 0  # closed: the lock is free
+
+
+def test_a_new_store_opened_to_read_is_created_empty(tmp_path: Path) -> None:
+    with sg.open_store(tmp_path / "new") as store:
+        assert sg.info(store) == [] and _cli("load", "--store", str(tmp_path / "new"), str(EXAMPLE)).returncode == 0
+        assert sg.unload(store, SHAFT)  # the unload reads the newest state: the graph the CLI loaded is there
+    with sg.open_store(tmp_path / "new", readonly=True) as store:
+        assert sg.info(store) == []
 
 
 # -- 4: a strict error caused by a string that ran on names where it opened -------------------------

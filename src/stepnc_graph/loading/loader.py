@@ -430,6 +430,7 @@ def load_paths(store: Store, paths: Iterable[str | Path], *, lenient: bool = Fal
                positions: bool = True, edition: str | None = None) -> list[LoadResult]:
     """:func:`stepnc_graph.api.load`: each input into its own named graph, planned first."""
     sources = plan_sources(list(paths), base_iri)
+    store.prepare_to_write()  # the checks below read the newest published state
     refuse_graph_name_clashes(store, [s.graph for s in sources])
     if not replace:
         refuse_replacing_other_files(store, sources)

@@ -325,7 +325,7 @@ def throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
             yield store
         return
     with tempfile.TemporaryDirectory(prefix="stepnc-graph-validate-") as tmp:
-        with open_store(Path(tmp) / "store") as store:
+        with open_store(Path(tmp) / "store", readonly=False) as store:  # written through .oxigraph
             yield store
 
 
