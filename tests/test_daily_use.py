@@ -423,6 +423,47 @@ def test_strict_error_names_where_a_runaway_string_opened(tmp_path: Path) -> Non
 # -- 8: output people read: terminal width, one name per format, JSON lines, RDF for CONSTRUCT ------
 
 
+STDIN_GRAPH = DATA_BASE + "stdin"
+
+
+def test_a_program_on_standard_input_wherever_a_program_is_read() -> None:
+    """``-`` reads a Part 21 program from standard input in validate, query and plan, as in load;
+    messages name it <stdin>."""
+    runner, program = CliRunner(), EXAMPLE.read_text(encoding="utf-8")
+    checked = runner.invoke(main, ["validate", "-"], input=program)
+    assert checked.exit_code == 0 and checked.stdout.startswith(f"{STDIN_GRAPH}: passes"), checked.output
+    rows = runner.invoke(main, ["query", "tool-changes", "-", "--format", "csv"], input=program)
+    assert rows.exit_code == 0 and rows.stdout.count(f"\n{STDIN_GRAPH},") == 2, rows.output
+    plan = runner.invoke(main, ["plan", "-", "--format", "json"], input=program)
+    assert plan.exit_code == 0 and '"critical_tool"' in plan.stdout, plan.output
+    damaged = DAMAGED.read_text(encoding="utf-8")
+    strict = runner.invoke(main, ["validate", "--strict", "-"], input=damaged)
+    assert strict.exit_code == 2 and "<stdin>:18:24" in strict.stderr, strict.stderr
+    found = runner.invoke(main, ["validate", "-"], input=damaged)
+    assert found.exit_code == 1 and "16 violation(s)" in found.stdout
+
+
+def test_an_express_file_on_standard_input() -> None:
+    done = CliRunner().invoke(main, ["schema", "check", "--parse-only", "-"],
+                              input="SCHEMA x; ENTITY a; END_ENTITY; END_SCHEMA;\n")
+    assert done.exit_code == 0 and "parsed <stdin>" in done.stdout, done.output
+    done = CliRunner().invoke(main, ["schema", "check", "-"], input="SCHEMA x; ENTITY a; END_ENTITY END_SCHEMA;\n")
+    assert done.exit_code == 2 and "<stdin>:1:32" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["query", "-", "-"], "standard input is read once"),
+    (["validate", "-", "-"], "standard input (-) is given twice"),
+    (["schema", "check", "-", "-"], "standard input (-) is given twice"),
+    (["validate", "--shapes", "-", str(EXAMPLE)], "--shapes -: shapes are read from a file"),
+    (["link", "-"], "link -: the mapping must be a file"),
+])
+def test_standard_input_where_it_cannot_serve_is_refused_with_the_reason(args: list[str], says: str) -> None:
+    done = CliRunner().invoke(main, args, input="")
+    assert done.exit_code == 2 and says in done.stderr and "Traceback" not in done.output, done.output
+
+
+
 def test_a_table_fits_the_width_it_is_given(shaft: GraphStore) -> None:
     result = sg.query(shaft, "tool-changes")
     wide = result.serialize("table").decode().splitlines()
