@@ -351,10 +351,13 @@ def test_one_writer_at_a_time_in_one_process_too(tmp_path: Path) -> None:
         with pytest.raises(StoreBusy):
             sg.open_store(tmp_path / "s", readonly=False, wait=0.3)
         assert listed_graphs(sg.open_store(tmp_path / "s", readonly=True)) == []
-        with sg.open_store(tmp_path / "s", wait=0.3) as lazy:  # opened to read: not busy until it writes
-            with pytest.raises(StoreBusy):
-                sg.load(lazy, [EXAMPLE])
-            assert listed_graphs(lazy) == []
+        lazy = sg.open_store(tmp_path / "s", wait=0.3)  # opened to read: not busy until it writes
+        with pytest.raises(StoreBusy):
+            sg.load(lazy, [EXAMPLE])
+        assert listed_graphs(lazy) == []  # still reads
+    sg.load(lazy, [EXAMPLE])  # the writer closed: this time it takes the lock
+    assert listed_graphs(lazy) == [G]
+    lazy.close()
 
 
 def test_a_read_only_store_refuses_writes(tmp_path: Path) -> None:
