@@ -140,7 +140,7 @@ def test_kill_9_of_a_loading_writer_while_readers_run(tmp_path: Path, big: Path,
     assert all(state in (before, after) for state in readers.seen())
     state = graphs(store)  # a reader opens it
     assert state in (before, after)
-    with sg.open_store(store) as s:  # the next writer recovers what the killed one left
+    with sg.open_store(store, readonly=False) as s:  # the next writer recovers what the killed one left
         assert {g.graph: g.triples for g in sg.info(s)} == state
     again = cli("load", "--store", str(store), str(EXAMPLE))
     assert again.returncode == 0, again.stderr

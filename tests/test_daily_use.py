@@ -3,6 +3,8 @@ people read. Each test here failed on the code before its fix."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -251,6 +253,32 @@ def test_load_summary_uses_thousands_separators_and_gives_the_rate(tmp_path: Pat
     assert f" {count} instances" not in done.stdout
 
 
+def test_load_summary_states_the_store_size_on_disk(tmp_path: Path) -> None:
+    import json
+
+    from stepnc_graph.store import directory_bytes
+
+    store_dir = tmp_path / "store"
+    done = CliRunner().invoke(main, ["load", "--store", str(store_dir), str(EXAMPLE)])
+    assert done.exit_code == 0, done.output
+    size = directory_bytes(store_dir)
+    assert done.stdout.splitlines()[-1] == f"store {store_dir.resolve()}: {size / 1e6:,.1f} MB on disk"
+    done = CliRunner().invoke(main, ["load", "--store", str(store_dir), str(EXAMPLE), "--format", "json"])
+    report = json.loads(done.stdout)
+    assert report["store"] == str(store_dir.resolve()) and report["disk_bytes"] == directory_bytes(store_dir)
+    done = CliRunner().invoke(main, ["load", "--memory", str(EXAMPLE), "--format", "json"])
+    assert json.loads(done.stdout)["disk_bytes"] is None and json.loads(done.stdout)["store"] == "memory"
+    done = CliRunner().invoke(main, ["load", "--memory", str(EXAMPLE)])
+    assert "on disk" not in done.stdout
+
+
+def test_sizes_for_people_use_decimal_units() -> None:
+    from stepnc_graph.cli.store import human_bytes
+
+    assert [human_bytes(n) for n in (812, 1000, 12_345_678, 1_400_000_000, 3 * 10**15)] == [
+        "812 B", "1.0 kB", "12.3 MB", "1.4 GB", "3,000.0 TB"]
+
+
 # -- 9: --graph and unload take a unique end of a graph IRI, and suggest on a miss ------------------
 
 
@@ -333,6 +361,40 @@ def test_a_notebook_reader_does_not_block_a_load(tmp_path: Path) -> None:
         assert len(sg.query(reader, "tool-changes")) == 2
 
 
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "stepnc_graph.cli", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_open_store_reads_without_the_lock_until_it_writes(tmp_path: Path) -> None:
+    """``sg.open_store(path)`` in a notebook: CLI loads go on while it reads; its own load takes the
+    writer's lock then, from the newest published state, and holds it until it is closed."""
+    store_dir = tmp_path / "store"
+    assert _cli("load", "--store", str(store_dir), str(EXAMPLE)).returncode == 0
+    other = DATA_BASE + "shaft_damaged.stp"
+    with sg.open_store(store_dir) as notebook:
+        held = notebook.oxigraph  # a handle on the generation it reads
+        seen = notebook.generation
+        done = _cli("load", "--store", str(store_dir), "--lenient", str(DAMAGED))
+        assert done.returncode == 1, done.stderr  # not busy: the notebook only reads
+        assert len(sg.query(notebook, "tool-changes")) == 2  # still reads (the generation it opened)
+        sg.load(notebook, [EXAMPLE], base_iri="urn:notebook")  # takes the lock now
+        assert {g.graph for g in sg.info(notebook)} == {SHAFT, other, "urn:notebook"}  # the CLI's load kept
+        assert len(held) > 0 and (store_dir / str(seen)).is_dir()  # not collected under its handle
+        busy = _cli("load", "--store", str(store_dir), str(EXAMPLE))
+        assert busy.returncode == 2 and "is being written by" in busy.stderr, busy.stderr
+    del held
+    assert _cli("load", "--store", str(store_dir), str(EXAMPLE)).returncode == 0  # closed: the lock is free
+
+
+def test_a_new_store_opened_to_read_is_created_empty(tmp_path: Path) -> None:
+    with sg.open_store(tmp_path / "new") as store:
+        assert sg.info(store) == [] and _cli("load", "--store", str(tmp_path / "new"), str(EXAMPLE)).returncode == 0
+        assert sg.unload(store, SHAFT)  # the unload reads the newest state: the graph the CLI loaded is there
+    with sg.open_store(tmp_path / "new", readonly=True) as store:
+        assert sg.info(store) == []
+
+
 # -- 4: a strict error caused by a string that ran on names where it opened -------------------------
 
 
@@ -359,6 +421,47 @@ def test_strict_error_names_where_a_runaway_string_opened(tmp_path: Path) -> Non
 
 
 # -- 8: output people read: terminal width, one name per format, JSON lines, RDF for CONSTRUCT ------
+
+
+STDIN_GRAPH = DATA_BASE + "stdin"
+
+
+def test_a_program_on_standard_input_wherever_a_program_is_read() -> None:
+    """``-`` reads a Part 21 program from standard input in validate, query and plan, as in load;
+    messages name it <stdin>."""
+    runner, program = CliRunner(), EXAMPLE.read_text(encoding="utf-8")
+    checked = runner.invoke(main, ["validate", "-"], input=program)
+    assert checked.exit_code == 0 and checked.stdout.startswith(f"{STDIN_GRAPH}: passes"), checked.output
+    rows = runner.invoke(main, ["query", "tool-changes", "-", "--format", "csv"], input=program)
+    assert rows.exit_code == 0 and rows.stdout.count(f"\n{STDIN_GRAPH},") == 2, rows.output
+    plan = runner.invoke(main, ["plan", "-", "--format", "json"], input=program)
+    assert plan.exit_code == 0 and '"critical_tool"' in plan.stdout, plan.output
+    damaged = DAMAGED.read_text(encoding="utf-8")
+    strict = runner.invoke(main, ["validate", "--strict", "-"], input=damaged)
+    assert strict.exit_code == 2 and "<stdin>:18:24" in strict.stderr, strict.stderr
+    found = runner.invoke(main, ["validate", "-"], input=damaged)
+    assert found.exit_code == 1 and "16 violation(s)" in found.stdout
+
+
+def test_an_express_file_on_standard_input() -> None:
+    done = CliRunner().invoke(main, ["schema", "check", "--parse-only", "-"],
+                              input="SCHEMA x; ENTITY a; END_ENTITY; END_SCHEMA;\n")
+    assert done.exit_code == 0 and "parsed <stdin>" in done.stdout, done.output
+    done = CliRunner().invoke(main, ["schema", "check", "-"], input="SCHEMA x; ENTITY a; END_ENTITY END_SCHEMA;\n")
+    assert done.exit_code == 2 and "<stdin>:1:32" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["query", "-", "-"], "standard input is read once"),
+    (["validate", "-", "-"], "standard input (-) is given twice"),
+    (["schema", "check", "-", "-"], "standard input (-) is given twice"),
+    (["validate", "--shapes", "-", str(EXAMPLE)], "--shapes -: shapes are read from a file"),
+    (["link", "-"], "link -: the mapping must be a file"),
+])
+def test_standard_input_where_it_cannot_serve_is_refused_with_the_reason(args: list[str], says: str) -> None:
+    done = CliRunner().invoke(main, args, input="")
+    assert done.exit_code == 2 and says in done.stderr and "Traceback" not in done.output, done.output
+
 
 
 def test_a_table_fits_the_width_it_is_given(shaft: GraphStore) -> None:

@@ -186,7 +186,7 @@ def test_a_killed_writer_s_texts_are_collected_by_the_next_writer(tmp_path: Path
     stray.write_bytes(b"half a text")
     with sg.open_store(store_dir, readonly=True):
         assert stray.exists()  # readers change nothing
-    with sg.open_store(store_dir):
+    with sg.open_store(store_dir, readonly=False):  # the next writer
         assert not stray.exists()
         assert {p.name for p in (store_dir / "kept").iterdir()} == {
             e["file"] for e in index(store_dir)["graphs"].values()} | {"index.json"}

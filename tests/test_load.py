@@ -500,7 +500,7 @@ sg.load(sg.open_store({str(store_dir)!r}), [{str(EXAMPLE)!r}])
     assert done.returncode == 9, done.stderr
     assert (store_dir / "work.dirty").exists()  # the interrupted load left work/ marked
     assert _snapshot(sg.open_store(store_dir, readonly=True)) == before  # readers never saw it
-    reopened = sg.open_store(store_dir)
+    reopened = sg.open_store(store_dir, readonly=False)  # the next writer recovers
     assert _snapshot(reopened) == before
     assert not (store_dir / "work.dirty").exists()
 

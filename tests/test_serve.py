@@ -147,7 +147,7 @@ def test_writable_serve_publishes_its_updates(store: Path) -> None:
                                headers={"Content-Type": "application/sparql-update"})
         assert update.status_code == 204
         with pytest.raises(sg.api.StoreBusy):  # the writer's lock is held while serving
-            sg.open_store(store)
+            sg.open_store(store, readonly=False)
     finally:
         code, stderr = server.stop()
     assert code == 0 and "--writable" in stderr  # the warning
@@ -162,7 +162,7 @@ def test_a_killed_writable_serve_keeps_its_updates(store: Path) -> None:
     server.stop(signal.SIGKILL)
     for _ in range(100):  # its Oxigraph child follows it (parent-death signal) and releases the database
         try:
-            with sg.open_store(store) as s:
+            with sg.open_store(store, readonly=False) as s:  # the next writer publishes what it served
                 assert "urn:kept" in listed_graphs(s)
             return
         except sg.api.StoreError:

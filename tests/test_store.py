@@ -327,7 +327,7 @@ def test_an_interrupt_that_keeps_the_database_alive_is_still_the_error_raised(tm
             s.count()
     with sg.open_store(tmp_path / "s", readonly=True) as r:
         assert quads(r) == before
-    with sg.open_store(tmp_path / "s") as w:  # the next writer recovers work/
+    with sg.open_store(tmp_path / "s", readonly=False) as w:  # the next writer recovers work/
         assert quads(w) == before
 
 
@@ -345,12 +345,19 @@ def test_readers_keep_their_generation_while_a_writer_publishes(tmp_path: Path) 
 
 
 def test_one_writer_at_a_time_in_one_process_too(tmp_path: Path) -> None:
-    with sg.open_store(tmp_path / "s"):
+    with sg.open_store(tmp_path / "s", readonly=False):
         with pytest.raises(StoreBusy, match=r"being written by pid \d+"):
-            sg.open_store(tmp_path / "s")
+            sg.open_store(tmp_path / "s", readonly=False)
         with pytest.raises(StoreBusy):
-            sg.open_store(tmp_path / "s", wait=0.3)
+            sg.open_store(tmp_path / "s", readonly=False, wait=0.3)
         assert listed_graphs(sg.open_store(tmp_path / "s", readonly=True)) == []
+        lazy = sg.open_store(tmp_path / "s", wait=0.3)  # opened to read: not busy until it writes
+        with pytest.raises(StoreBusy):
+            sg.load(lazy, [EXAMPLE])
+        assert listed_graphs(lazy) == []  # still reads
+    sg.load(lazy, [EXAMPLE])  # the writer closed: this time it takes the lock
+    assert listed_graphs(lazy) == [G]
+    lazy.close()
 
 
 def test_a_read_only_store_refuses_writes(tmp_path: Path) -> None:
@@ -669,7 +676,7 @@ def test_a_killed_replacement_leaves_no_scratch_behind(tmp_path: Path) -> None:
     (tmp_path / "s" / "difference").mkdir()
     (tmp_path / "s" / "difference" / "new0.nt").write_bytes(b"<urn:a> <urn:b> <urn:c> .\n")
     (tmp_path / "s" / "work.dirty").write_text("")
-    with sg.open_store(tmp_path / "s") as w:
+    with sg.open_store(tmp_path / "s", readonly=False) as w:  # the next writer recovers
         assert quads(w) == before
     assert not (tmp_path / "s" / "difference").exists()
 
@@ -965,7 +972,7 @@ def test_a_full_disk_fails_the_load_cleanly(tmp_path: Path, free_mb: int) -> Non
         assert done.returncode == 2 and "Traceback" not in done.stderr
         assert f"store in {store}" in done.stderr and "No space left on device" in done.stderr
         assert _cli("export", "--store", store, "--format", "nq").stdout == before
-        with sg.open_store(store) as s:  # not StoreBusy: the failed load let go of the lock
+        with sg.open_store(store, readonly=False) as s:  # not StoreBusy: the failed load let go of the lock
             assert [g.graph for g in sg.info(s)] == [sg.info(s)[0].graph] and s.count() > 0
 
 

@@ -80,6 +80,7 @@ def unload(store: Store, graph: str, compact: bool = False) -> bool:
     own raise :class:`~stepnc_graph.core.naming.GraphNameError`. Beside other programs the store
     compacts once enough was deleted (:data:`~stepnc_graph.store.tuning.COMPACT_AT`); ``compact`` gives
     the space back now."""
+    store.prepare_to_write()  # the graphs that go with it, read from the newest published state
     companions = graph_layout(store).unloaded_with(graph)
     return store.remove_graph(graph, companions=companions, compact=compact)
 
@@ -101,6 +102,7 @@ def compact(store: Store, progress: Callable[[int, int], None] | None = None) ->
     that removed programs still hold (:meth:`GraphStore.compact` says why an unload alone does
     not). ``progress(done, total)`` counts the quads copied. A SPARQL endpoint manages its own
     storage: :class:`StoreError`."""
+    store.prepare_to_write()
     before = store.maintenance()
     if before is None:
         raise StoreError("compact works on a stepnc-graph store directory; a SPARQL endpoint manages its own storage")

@@ -349,8 +349,8 @@ def with_endpoint(f: F) -> F:
 
 def open_writer(store_path: Path | None, memory: bool = False, wait: bool = False,
                 remote: RemoteOptions | None = None, create: bool = True) -> Store:
-    """The store, opened for writing (created if need be and ``create``: only `load` creates);
-    it is busy: exit 2, or wait with a note."""
+    """The store, opened for writing at once (created if need be and ``create``: only `load`
+    creates): the writer's lock is taken before anything is read; busy: exit 2, or wait with a note."""
     from stepnc_graph.api import open_store
 
     if remote is not None and remote.wanted(store_path, memory):
@@ -359,7 +359,7 @@ def open_writer(store_path: Path | None, memory: bool = False, wait: bool = Fals
     def waiting(writer: Writer) -> None:
         err.print(f"waiting for the store's writer ({escape(str(writer))}) to finish ...")
 
-    return open_store(store_path, memory, wait=wait, on_wait=waiting, create=create)
+    return open_store(store_path, memory, readonly=False, wait=wait, on_wait=waiting, create=create)
 
 
 def open_reader(store_path: Path | None, remote: RemoteOptions | None = None) -> Store:

@@ -16,6 +16,7 @@ from stepnc_graph.cli.common import (
     format_choice,
     EXIT_NONCONFORMING,
     RemoteOptions,
+    UsageProblem,
     escape,
     open_writer,
     out,
@@ -28,7 +29,7 @@ from stepnc_graph.cli.common import (
 
 
 @click.command("link")
-@click.argument("mapping", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("mapping", type=click.Path(exists=True, dir_okay=False, allow_dash=True, path_type=Path))
 @click.option("--graph", default=None, help="The program graph to link (see `stepnc-graph info`); default: the "
                                             "store's only program.")
 @store_option
@@ -50,7 +51,10 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, remote: 
     its #id (p21_id) -- and attaches a dcterms:identifier (identifier) and/or an
     owl:sameAs IRI (same_as). The links go into the graph
     <program graph>/links/<mapping file name>, with their provenance; the program
-    graph is not changed. Linking a mapping again replaces its links.
+    graph is not changed. Linking a mapping again replaces its links. MAPPING
+    is a file, not - (standard input): the link graph is named by the file's
+    name, records where it came from, and a second link of the same file
+    replaces the first.
 
     Exit codes: 0 every row linked; 1 some rows matched no single entity
     (--allow-unknown; they are listed); 2 rows matched no single entity (none
@@ -58,6 +62,9 @@ def link_cmd(mapping: Path, graph: str | None, store_path: Path | None, remote: 
     """
     from stepnc_graph.loading.link import link
 
+    if str(mapping) == "-":
+        raise UsageProblem("link -: the mapping must be a file, not standard input: its link graph is named "
+                           "<program>/links/<file name> and records the file it came from")
     with open_writer(store_path, wait=wait, remote=remote, create=False) as store:
         result = link(store, mapping, pick_graph(store, graph) if graph is not None else None,
                       allow_unknown=allow_unknown, replace=replace)

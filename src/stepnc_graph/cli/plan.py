@@ -50,7 +50,8 @@ def _fail(message: str) -> None:
 @reports_errors
 def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote: RemoteOptions, graph: str | None,
              fmt: str, graphml: Path | None, svg: Path | None, png: Path | None, page: int, lenient: bool) -> None:
-    """The workplan of PROGRAM (a Part 21 file) or of a program in the store.
+    """The workplan of PROGRAM (a Part 21 file; - reads it from standard input) or of a program
+    in the store.
 
     Prints the execution order by setup, the tool changes, precedence errors
     (finishing before roughing on a feature), tools shared across setups and
@@ -59,8 +60,6 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     from stepnc_graph.workplan.plan import PlanError, build_plan
     from stepnc_graph.workplan.plan import png as to_png
 
-    if program is not None and not program.is_file():
-        _fail(f"{program}: no such program file")
     with open_programs([program] if program is not None else [], store_path, memory, remote, lenient) as store:
         try:
             # the networkx graph only for what shows it (GraphML, the JSON summary's counts)

@@ -52,12 +52,14 @@ def _params(pairs: tuple[str, ...]) -> dict[str, str]:
 
 
 def load_programs(store: Store, files: list[Path], lenient: bool) -> None:
-    """Load FILE.stp arguments into the (throw-away) store; a file that cannot be read exits 2."""
-    from stepnc_graph.api import load
+    """Load FILE.stp arguments into the (throw-away) store, ``-`` from standard input as the graph
+    :data:`~stepnc_graph.loading.sources.STDIN_GRAPH`; a file that cannot be read exits 2."""
+    from stepnc_graph.loading.loader import load_paths
+    from stepnc_graph.loading.sources import STDIN_GRAPH
     from stepnc_graph.part21 import Part21SyntaxError
 
     try:
-        results = load(store, files, lenient=lenient)
+        results = load_paths(store, files, lenient=lenient, stdin_graph=STDIN_GRAPH)
     except Part21SyntaxError as exc:
         _fail(f"{exc}\nnothing loaded; --lenient loads what can be read")
     except (OSError, StepncGraphError) as exc:
@@ -70,9 +72,13 @@ def load_programs(store: Store, files: list[Path], lenient: bool) -> None:
 
 def open_programs(programs: list[Path], store_path: Path | None, memory: bool, remote: RemoteOptions,
                   lenient: bool) -> Store:
-    """FILE.stp arguments in a throw-away store, or the store (read-only, its published state)."""
+    """FILE.stp arguments (``-``: standard input) in a throw-away store, or the store (read-only,
+    its published state)."""
     from stepnc_graph.store import GraphStore
 
+    for p in programs:
+        if str(p) != "-" and not p.is_file():
+            _fail(f"{p}: no such program file")
     if programs:
         if store_path is not None or memory or remote.endpoint or remote.query_url:
             _fail("give --store/--memory/--endpoint or program files, not both")
@@ -117,7 +123,8 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
       stepnc-graph query -e 'SELECT ?ws ?id WHERE { ?ws a stepnc:workingstep ; attr:its_id ?id }'
 
     Program files after the query are loaded into a throw-away store (no
-    --store then). Every library query names the program (?program, the
+    --store then); - among them is a Part 21 program on standard input (its
+    graph: https://w3id.org/stepnc-graph/data/stdin). Every library query names the program (?program, the
     file's graph IRI). Parameters are bound as RDF terms, never pasted into
     the query text. Queries are read-only, and a SERVICE clause (a request
     to another server) is refused unless --allow-service is given.
@@ -135,9 +142,8 @@ def query_cmd(args: tuple[str, ...], text: str | None, store_path: Path | None, 
         _fail("give a query: NAME, FILE.rq or -e 'SPARQL' (`stepnc-graph queries` lists the library)")
     spec, files = (text, list(args)) if text is not None else (args[0], list(args[1:]))
     programs = [Path(f) for f in files]
-    for p in programs:
-        if not p.is_file():
-            _fail(f"{p}: no such program file")
+    if spec == "-" and "-" in files:
+        _fail("standard input is read once: give the query (-) or a program (-) on it, not both")
     try:
         if spec == "-":  # `query -` and `query -e -`: the SPARQL text on standard input
             stdin = sys.stdin.read()

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from stepnc_graph.cli.common import EXIT_BAD_INPUT, EXIT_OK, echo_json, err, escape, fail_input, format_choice, out
+from stepnc_graph.cli.common import (EXIT_BAD_INPUT, EXIT_OK, UsageProblem, echo_json, err, escape, fail_input,
+                                     format_choice, out)
 
 if TYPE_CHECKING:
     from stepnc_graph.express.parser import ParsedSchema
@@ -25,26 +26,32 @@ def schema() -> None:
 
 
 @schema.command("check")
-@click.argument("files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, required=True,
+                type=click.Path(exists=True, dir_okay=False, allow_dash=True, path_type=Path))
 @click.option("--parse-only", is_flag=True, help="Only parse; do not resolve names across the files.")
 @click.option("--format", "fmt", type=format_choice(["text", "json"]), default="text", show_default=True)
 def schema_check(files: tuple[Path, ...], parse_only: bool, fmt: str) -> None:
     """Parse EXPRESS FILES and resolve them together into one model.
 
     Reports the first syntax error of a file (with line, column and a caret),
-    or every resolution error (unknown type, cycle, duplicate name). Exit 2 on
-    any error.
+    or every resolution error (unknown type, cycle, duplicate name). - reads
+    a file from standard input (messages name it <stdin>). Exit 2 on any error.
     """
-    from stepnc_graph.express import ExpressSyntaxError, parse_file
+    from stepnc_graph.express import ExpressSyntaxError, parse_file, parse_text
     from stepnc_graph.schema import SchemaError, build_model
 
     parsed: list[ParsedSchema] = []
     timings = {}
+    if sum(str(f) == "-" for f in files) > 1:
+        fail_input(UsageProblem("standard input (-) is given twice: it can be read once"), fmt)
     try:
         for f in files:
             started = time.perf_counter()
-            parsed.extend(parse_file(f))
-            timings[str(f)] = time.perf_counter() - started
+            if str(f) == "-":
+                parsed.extend(parse_text(sys.stdin.read(), "<stdin>"))
+            else:
+                parsed.extend(parse_file(f))
+            timings["<stdin>" if str(f) == "-" else str(f)] = time.perf_counter() - started
         model = None if parse_only else build_model(parsed)
     except (ExpressSyntaxError, SchemaError) as exc:
         fail_input(exc, fmt)

@@ -76,7 +76,9 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
     (with --base-iri). Loading a file again replaces its graph; a load that
     fails leaves the store as it was. Schema problems (unknown entity, wrong
     parameter count or value type, unresolved reference) are reported and the
-    instance is kept raw, so nothing is lost.
+    instance is kept raw, so nothing is lost. The summary ends with the
+    store's size on disk (--format json: disk_bytes; null in memory or at an
+    endpoint).
 
     Exit codes: 0 loaded cleanly, 1 loaded with diagnostics, 2 a file could not
     be loaded (syntax error in strict mode, unreadable) or bad usage.
@@ -90,7 +92,25 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
         if not replace:
             refuse_replacing_other_files(store, sources)
         results, failures = _load_all(store, sources, lenient, fmt, edition)
-    _report_loads(results, failures, fmt)
+        location, size = _location(store), _disk_size(store)
+    _report_loads(results, failures, fmt, location, size)
+
+
+def _disk_size(store: Store) -> int | None:
+    """Bytes the store takes on disk, or None where it has no files of its own: in memory, or an
+    endpoint, which manages its own storage."""
+    maintenance = store.maintenance()
+    return maintenance.disk_bytes if maintenance is not None and store.capabilities.persistent else None
+
+
+def human_bytes(count: int) -> str:
+    """A size for people, in decimal units as disk tools state them: 812 B, 12.3 MB, 1.4 GB."""
+    size = float(count)
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if size < 1000 or unit == "TB":
+            return f"{count:,} B" if unit == "B" else f"{size:,.1f} {unit}"
+        size /= 1000
+    raise AssertionError("unreachable")
 
 
 def _load_all(store: Store, sources: list[Source], lenient: bool,
@@ -163,9 +183,12 @@ def _bar(counter: Any) -> Progress:
                         console=err, transient=True)
 
 
-def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt: str) -> NoReturn:
+def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt: str, location: str,
+                  size: int | None) -> NoReturn:
+    """Each file's summary, then the store's size on disk (where it has one), and the exit code."""
     if fmt == "json":
-        echo_json({"files": [r.asdict() for r in results], "errors": [error_record(e) for e in failures]})
+        echo_json({"files": [r.asdict() for r in results], "errors": [error_record(e) for e in failures],
+                   "store": location, "disk_bytes": size})
     else:
         for r in results:
             errors = sum(d.severity == "error" for d in r.diagnostics)
@@ -181,6 +204,8 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
                 ident = f" #{d.p21_id}" if d.p21_id is not None else ""
                 out.print(f"  [{_COLOURS.get(d.severity, 'blue')}]{d.severity}[/] {d.line}:{d.column}{ident} "
                           f"{d.code}: {escape(d.message)}")
+        if size is not None:
+            out.print(f"store {escape(location)}: {human_bytes(size)} on disk")
     if failures:
         sys.exit(EXIT_BAD_INPUT)
     sys.exit(EXIT_NONCONFORMING if any(r.diagnostics for r in results) else EXIT_OK)

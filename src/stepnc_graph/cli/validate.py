@@ -43,7 +43,7 @@ def phases() -> Iterator[Callable[[str], None] | None]:
 
 
 @click.command("validate")
-@click.argument("files", nargs=-1, type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, type=click.Path(exists=True, dir_okay=False, allow_dash=True, path_type=Path))
 @click.option("--store", "store_path", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Validate graphs of this store instead of FILES (its last published state: a load "
                    "running meanwhile is not waited for).")
@@ -52,8 +52,11 @@ def phases() -> Iterator[Callable[[str], None] | None]:
 @click.option("--format", "fmt", type=format_choice(["text", "json", "turtle"]), default="text", show_default=True)
 @click.option("--severity", type=click.Choice(["violation", "warning", "info"]), default="info", show_default=True,
               help="The lowest severity reported.")
-@click.option("--shapes", "extra", multiple=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="An extra SHACL shapes file (Turtle), e.g. an organisation's own rules (repeatable).")
+@click.option("--shapes", "extra", multiple=True,
+              type=click.Path(exists=True, dir_okay=False, allow_dash=True, path_type=Path),
+              help="An extra SHACL shapes file (Turtle), e.g. an organisation's own rules (repeatable). Not -: "
+                   "shapes are compiled once per file and kept while it is unchanged; standard input is for "
+                   "FILES.")
 @click.option("--no-iso-shapes", "no_iso", is_flag=True,
               help="Leave out the ISO 14649 shapes and process rules: only --shapes run (a general SHACL "
                    "validator for any RDF data).")
@@ -75,7 +78,8 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
 
     FILES are Part 21 programs (.stp, .step, .p21), JSON-LD program graphs
     (.jsonld) or any RDF data (.ttl, .nt, .nq, .trig, .rdf; a file's graphs are
-    validated together). Every result gives the node (for a program: #id,
+    validated together); - is a Part 21 program on standard input (messages
+    name it <stdin>). Every result gives the node (for a program: #id,
     entity, line), the attribute or path, the value found, what was expected,
     the rule and its ISO clause. Problems the loader finds (unknown entity,
     wrong parameter count or type, unresolved reference, recovered syntax, an
@@ -90,6 +94,9 @@ def validate_cmd(files: tuple[Path, ...], store_path: Path | None, remote: Remot
     """
     from stepnc_graph.validation import validate
 
+    if any(str(f) == "-" for f in extra):
+        raise UsageProblem("--shapes -: shapes are read from a file (compiled once per file and kept while it is "
+                           "unchanged); standard input is for FILES (validate - reads a program from it)")
     in_store = store_path is not None or remote.wanted(store_path, bool(files))
     if bool(files) == in_store:
         raise UsageProblem("give FILES, or --store DIR / --endpoint URL; not both and not neither")

@@ -467,6 +467,7 @@ def link(store: Store, mapping: str | Path, graph: str | None = None, *, allow_u
     """
     path = Path(mapping)
     raw = path.read_bytes()
+    store.prepare_to_write()  # the checks below read the newest published state
     graph = graph if graph is not None else _only_program(store)
     if not store.has_graph(graph):
         raise SourceError(f"no graph {graph} in the store (see `stepnc-graph info`)")

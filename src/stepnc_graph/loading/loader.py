@@ -416,9 +416,12 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
 
 def load_paths(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
                progress: Progress | None = None, replace: bool = False, derived: bool = True,
-               positions: bool = True, edition: str | None = None) -> list[LoadResult]:
-    """:func:`stepnc_graph.api.load`: each input into its own named graph, planned first."""
-    sources = plan_sources(list(paths), base_iri)
+               positions: bool = True, edition: str | None = None,
+               stdin_graph: str | None = None) -> list[LoadResult]:
+    """:func:`stepnc_graph.api.load`: each input into its own named graph, planned first
+    (``stdin_graph``: the graph of ``-`` without ``base_iri``, see :func:`plan_sources`)."""
+    sources = plan_sources(list(paths), base_iri, stdin_graph)
+    store.prepare_to_write()  # the checks below read the newest published state
     refuse_graph_name_clashes(store, [s.graph for s in sources])
     if not replace:
         refuse_replacing_other_files(store, sources)

@@ -21,18 +21,23 @@ from stepnc_graph.core.naming import DATA_BASE, instance_prefix
 from stepnc_graph.loading.common import Source, SourceError, check_iri
 from stepnc_graph.store import Store
 
-__all__ = ["STDIN", "SUFFIXES", "Source", "SourceError", "check_iri", "plan_sources", "refuse_replacing_other_files"]
+__all__ = ["STDIN", "STDIN_GRAPH", "SUFFIXES", "Source", "SourceError", "check_iri", "plan_sources", "refuse_replacing_other_files"]
 
 #: file name endings of Part 21 programs, and of program graphs in JSON-LD, compared case-insensitively
 SUFFIXES = input_suffixes()
 STDIN = "-"
+
+#: the graph of a program read from standard input into a throw-away store (query, plan, validate),
+#: where no --base-iri is asked for: the store is gone when the command ends
+STDIN_GRAPH = DATA_BASE + "stdin"
 
 
 def _relative_name(relative: Path) -> str:
     return "/".join(quote(part, safe="") for part in relative.parts)
 
 
-def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> list[Source]:
+def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None,
+                 stdin_graph: str | None = None) -> list[Source]:
     """The files to load and their graph IRIs, in order.
 
     A directory stands for every Part 21 file under it (``.stp``, ``.step``,
@@ -41,10 +46,13 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
     else ``base_iri`` (or ``https://w3id.org/stepnc-graph/data/``) as a prefix of
     the file name -- of the path relative to its directory, for a file found in
     one; a JSON-LD file names its own graph, used unless ``base_iri`` is given.
-    ``-`` is standard input and needs ``base_iri``.
+    ``-`` is standard input and needs ``base_iri``, or ``stdin_graph`` (a throw-away store's
+    name for it, :data:`STDIN_GRAPH`).
     """
     if base_iri is not None:
         check_iri(base_iri, "--base-iri")
+    if sum(str(item) == STDIN for item in inputs) > 1:
+        raise SourceError("standard input (-) is given twice: it can be read once")
     expanded: list[tuple[str, Path | None, str]] = []  # (name, path, name within the graph prefix)
     for item in inputs:
         if str(item) == STDIN:
@@ -61,6 +69,9 @@ def plan_sources(inputs: Sequence[str | Path], base_iri: str | None = None) -> l
     single = len(expanded) == 1 and not any(Path(str(i)).is_dir() for i in inputs if str(i) != STDIN)
     sources = []
     for name, path, local in expanded:
+        if path is None and base_iri is None and stdin_graph is not None:
+            sources.append(Source(name, path, stdin_graph))
+            continue
         if path is None and base_iri is None:
             raise SourceError("standard input (-) has no file name: give its graph IRI with --base-iri")
         if single and base_iri is not None:

@@ -214,7 +214,7 @@ class Endpoint:
     def start(self) -> None:
         """Start Oxigraph's server and the forwarding layer; returns once both listen."""
         if self.writable:
-            self._writer = GraphStore(self.store, create=False)
+            self._writer = GraphStore(self.store, readonly=False, create=False)
             location = self._writer.serving()
             self.backend = self._start_backend(location, None)
         else:

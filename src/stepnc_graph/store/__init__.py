@@ -113,43 +113,51 @@ __all__ = ["Capabilities", "Chunk", "Companion", "GraphStore", "Maintenance", "S
            "directory_bytes", "open_store"]
 
 
-def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool = False,
+def open_store(path: str | Path | None = None, memory: bool = False, *, readonly: bool | None = None,
                create: bool | None = None, wait: bool | float = False,
                on_wait: Callable[[Writer], None] | None = None) -> GraphStore:
     """The on-disk store at ``path`` (default: ``$STEPNC_GRAPH_STORE`` or ``./.stepnc-graph``), or an in-memory one.
 
-    A store opened for writing (the default) holds the store's writer lock until
-    it is closed (use ``with``); another writer gets :class:`StoreBusy`, or waits
-    with ``wait``. ``readonly=True`` reads the last published state without
-    blocking anyone and never creates a store (``create`` defaults to ``not readonly``).
+    By default the store reads the last published state without blocking anyone, and takes the
+    writer's lock at its first write (a load, an unload, a link, a compaction): a notebook that
+    only reads never stops a ``stepnc-graph load``. The write then reads the newest published
+    state; if another process is writing, it raises :class:`StoreBusy` (or waits with ``wait``)
+    and the store can still be read. Once it has written, it holds the lock until it is closed
+    (use ``with``). ``readonly=False`` takes the lock at once (as the CLI's writing commands do);
+    ``readonly=True`` never writes and never creates a store (``create`` defaults to ``not readonly``).
     """
     if memory:
         return GraphStore(None)
     return GraphStore(path or default_store_path(), readonly=readonly,
-                      create=not readonly if create is None else create, wait=wait, on_wait=on_wait)
+                      create=readonly is not True if create is None else create, wait=wait, on_wait=on_wait)
 
 
 class GraphStore:
     """Named graphs in an Oxigraph store. ``path=None`` is a throw-away in-memory store.
 
-    On disk, a store opened for writing (the default) holds the writer's lock
+    On disk, ``readonly=False`` takes the writer's lock at once and holds it
     until :meth:`close`; ``readonly=True`` opens the published state for
-    reading, never blocks and never changes anything. ``create=False`` refuses
-    a directory that is not a store yet (readers never create). ``wait`` makes a
-    writer wait for the lock (``True``, or a number of seconds) instead of
-    raising :class:`StoreBusy`; ``on_wait(writer)`` is called once before waiting.
+    reading, never blocks and never changes anything; the default (``None``)
+    reads like ``readonly=True`` until the first write, which takes the lock
+    then (:meth:`prepare_to_write`). ``create=False`` refuses a directory that
+    is not a store yet (readers never create). ``wait`` makes a writer wait for
+    the lock (``True``, or a number of seconds) instead of raising
+    :class:`StoreBusy`; ``on_wait(writer)`` is called once before waiting.
     """
 
     def __new__(cls, path: Path | str | None = None, **_options: Any) -> GraphStore:
         """``GraphStore(None)`` is a :class:`MemoryStore`; a directory, the store on disk."""
         return super().__new__(MemoryStore if cls is GraphStore and path is None else cls)
 
-    def __init__(self, path: Path | str | None = None, *, readonly: bool = False, create: bool = True,
+    def __init__(self, path: Path | str | None = None, *, readonly: bool | None = None, create: bool = True,
                  wait: bool | float = False, on_wait: Callable[[Writer], None] | None = None) -> None:
         self.path = Path(path) if path is not None else None
-        self.readonly = readonly
+        #: never writes (``readonly=True``); a store opened lazily (``readonly=None``) is not read-only
+        self.readonly = readonly is True
+        self._wait, self._on_wait = wait, on_wait  # for the writer's lock taken at the first write
         self._write_fd: int | None = None
         self._read_fd: int | None = None
+        self._held_read_fd: int | None = None  # a generation read before the first write (prepare_to_write)
         self._store: ox.Store | None = None
         self._closed_because: str | None = None  # why _db refuses use (a rollback that could not reopen)
         self.generation: str | None = None
@@ -175,21 +183,26 @@ class GraphStore:
             self._store = ox.Store()
             return
         self._kept = KeptTexts(self._file("kept"))
-        self._check_directory(create and not readonly)
+        self._check_directory(create and readonly is not True)
         try:
-            if readonly:
+            if readonly is None:
+                self._open_lazily()
+            elif readonly:
                 self._open_reader()
             else:
                 self._open_writer(wait, on_wait)
         except OSError as e:
             self.close()
-            if e.errno == errno.EROFS:
-                raise StoreError(f"cannot write to the store in {self.path}: it is on a read-only file system (info, "
-                                 "export, query and validate can still read it)") from None
-            raise StoreError(f"cannot open the store in {self.path}: {e.strerror or e}") from None
+            raise self._open_error(e) from None
         except BaseException:
             self.close()
             raise
+
+    def _open_error(self, e: OSError) -> StoreError:
+        if e.errno == errno.EROFS:
+            return StoreError(f"cannot write to the store in {self.path}: it is on a read-only file system (info, "
+                              "export, query and validate can still read it)")
+        return StoreError(f"cannot open the store in {self.path}: {e.strerror or e}")
 
     # -- opening -----------------------------------------------------------------------
 
@@ -235,6 +248,12 @@ class GraphStore:
         return Writer(info.get("pid"), info.get("command", ""), info.get("since", ""))
 
     def _open_writer(self, wait: bool | float, on_wait: Callable[[Writer], None] | None) -> None:
+        self._write_fd = self._lock_writer(wait, on_wait)
+        self._open_work()
+
+    def _lock_writer(self, wait: bool | float, on_wait: Callable[[Writer], None] | None) -> int:
+        """The writer's lock (its descriptor, with this process named in ``write.lock``), or
+        :class:`StoreBusy` when another process holds it (after ``wait``)."""
         lock = self._file("write.lock")
         fd = Locks.try_lock(lock, shared=False)
         if fd is None:
@@ -248,10 +267,18 @@ class GraphStore:
                     raise StoreBusy(self.path, self._writer())  # type: ignore[arg-type]
                 time.sleep(LOCK_POLL)
                 fd = Locks.try_lock(lock, shared=False)
-        self._write_fd = fd
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, json.dumps({"pid": os.getpid(), "command": command_line(),
-                                  "since": time.strftime("%Y-%m-%d %H:%M:%S")}).encode(), 0)
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps({"pid": os.getpid(), "command": command_line(),
+                                      "since": time.strftime("%Y-%m-%d %H:%M:%S")}).encode(), 0)
+        except BaseException:
+            Locks.release(fd)
+            raise
+        return fd
+
+    def _open_work(self) -> None:
+        """Open the writer's database (the writer's lock is held): the newest published state,
+        recovered from it when a write was left unfinished."""
         self._migrate_format1()
         serving = self._file("work.serving")
         if self._current() is None:  # a new store: publish its empty first generation
@@ -271,9 +298,52 @@ class GraphStore:
         self._collect()
         self._kept.collect()
 
+    def _open_lazily(self) -> None:
+        """Read the published state; a new store first publishes its empty first generation
+        (the writer's lock is taken for that moment only)."""
+        if self._current() is None:
+            with GraphStore(self.path, readonly=False, wait=self._wait, on_wait=self._on_wait):
+                pass
+        self._open_reader()
+
+    def prepare_to_write(self) -> None:
+        """Take the writer's lock now, if this store does not hold it yet (opened lazily), and read
+        the newest published state from then on: a write that reads the store first (which graphs
+        a program has, whether a graph is there) reads what it changes.
+
+        Another process writing: :class:`StoreBusy` (or a wait, per ``wait``), and the store
+        still reads the generation it read. The lock is then held until :meth:`close`.
+        """
+        if self.path is None or self._write_fd is not None:
+            return
+        if self.readonly:
+            raise StoreError(f"the store in {self.path} was opened read-only")
+        fd = self._lock_writer(self._wait, self._on_wait)  # StoreBusy here changes nothing
+        reader, read_fd = self._store, self._read_fd
+        self._store = None
+        # someone still holds the generation's database (``store.oxigraph``): keep its lock until
+        # close, so that no writer deletes the generation under it
+        self._held_read_fd = read_fd if sys.getrefcount(reader) > 2 else None
+        del reader
+        gc.collect()  # pyoxigraph releases a database when it is collected
+        if self._held_read_fd is None:
+            Locks.release(read_fd)
+        self._read_fd, self._write_fd = None, fd
+        try:
+            self._open_work()
+        except BaseException as exc:
+            self._close_db()
+            Locks.release(self._write_fd)
+            self._write_fd = None
+            self._open_reader()  # still a reader, of the newest published state
+            if isinstance(exc, OSError):
+                raise self._open_error(exc) from None
+            raise
+        self.generation = self._current()
+
     def _open_reader(self) -> None:
         if (self._file("oxigraph")).exists():  # format 1: needs the writer to migrate it
-            with GraphStore(self.path, create=False):
+            with GraphStore(self.path, readonly=False, create=False):
                 pass
         for _ in range(100):
             generation = self._current()
@@ -333,8 +403,7 @@ class GraphStore:
         """Mark ``work/`` as possibly different from the published generation."""
         if self.path is None:
             return
-        if self.readonly:
-            raise StoreError(f"the store in {self.path} was opened read-only")
+        self.prepare_to_write()
         dirty = self._file("work.dirty")
         try:
             if not dirty.exists():
@@ -391,6 +460,7 @@ class GraphStore:
         here and marked as being served; :meth:`served` takes it back and publishes it."""
         if self.path is None or self.readonly:
             raise StoreError("only an on-disk store opened for writing can be served writable")
+        self.prepare_to_write()
         self._close_db()
         self._file("work.serving").write_text(str(os.getpid()))
         fsync_dir(self.path)
@@ -528,7 +598,7 @@ class GraphStore:
 
     def _close_db(self) -> None:
         if self._store is not None:
-            if self.path is not None and not self.readonly:
+            if self.path is not None and self._write_fd is not None:  # the writer's database
                 self._store.flush()
             self._store = None
             if self.path is not None:  # an in-memory store has no files or lock to release
@@ -539,7 +609,8 @@ class GraphStore:
         self._close_db()
         Locks.release(self._read_fd)
         Locks.release(self._write_fd)
-        self._read_fd = self._write_fd = None
+        Locks.release(self._held_read_fd)
+        self._read_fd = self._write_fd = self._held_read_fd = None
 
     def __del__(self) -> None:  # a store dropped without close() still releases its locks
         try:
@@ -578,6 +649,7 @@ class GraphStore:
         is for the writing commands to check (:class:`~stepnc_graph.core.naming.GraphLayout`).
         """
         refuse_strangers(graph, companions)
+        self.prepare_to_write()
         with self._write([graph, *companions, VOCABULARY_GRAPH]) as kept:
             how, present, removed, held = Removal(self).choose([graph, *companions], kept)
             if how == "delete":
@@ -596,6 +668,7 @@ class GraphStore:
         ``compact``. Removed by a rebuild, the space comes back at once. Refuses what
         :meth:`replace_graph` refuses."""
         refuse_strangers(graph, companions)
+        self.prepare_to_write()  # whether the graph is there, in the newest published state
         if not self._db.contains_named_graph(ox.NamedNode(graph)):
             return False
         with self._write([graph, *companions]) as kept:
@@ -752,6 +825,7 @@ class GraphStore:
     def update(self, sparql: str) -> None:
         """One SPARQL Update (one transaction); for writes inside a load's ``before_commit``
         (into the graphs of that load: outside a load, it may have changed any graph)."""
+        self.prepare_to_write()
         self._touch_any_outside_a_write()
         self._db.update(sparql)
 
@@ -763,6 +837,7 @@ class GraphStore:
         """Add N-Triples to ``graph`` (for use inside ``before_commit``): in one transaction, or
         with ``bulk`` through Oxigraph's bulk loader (faster for many, not transactional: the load
         around it is)."""
+        self.prepare_to_write()
         if self._tee is not None:
             self._tee.write(graph, text)
         self._touch([graph])
@@ -777,6 +852,7 @@ class GraphStore:
         :data:`~stepnc_graph.store.tuning.TRANSACTION_QUADS` in one transaction, more through the bulk loader in calls of
         :data:`~stepnc_graph.store.tuning.INSERT_BATCH` (a transaction holds all of its quads in memory, several times
         their size). Returns how many were added."""
+        self.prepare_to_write()
         self._touch_any_outside_a_write()
         it = iter(quads)
         first = list(itertools.islice(it, tuning.TRANSACTION_QUADS + 1))
@@ -788,6 +864,7 @@ class GraphStore:
     def add_turtle(self, graph: str, text: str) -> None:
         """Add a Turtle document to ``graph`` (inside ``before_commit``, like :meth:`add_ntriples`):
         parsed by Oxigraph in one call, with no Python object per triple."""
+        self.prepare_to_write()
         self._touch([graph])
         self._db.bulk_load(text.encode("utf-8"), ox.RdfFormat.TURTLE, to_graph=ox.NamedNode(graph))
 
@@ -879,8 +956,10 @@ class GraphStore:
     def oxigraph(self) -> ox.Store:
         """The underlying pyoxigraph store (for SPARQL users who want it directly). Writes through
         it are not seen by the store: a writer that hands it out keeps no load's text beyond its
-        next write (see :mod:`stepnc_graph.store.kept`)."""
-        if not self.readonly:
+        next write (see :mod:`stepnc_graph.store.kept`). A store opened read-only, or lazily and
+        not written yet, hands out the published generation, read-only: writes through it need
+        ``open_store(..., readonly=False)`` or :meth:`prepare_to_write` first."""
+        if self.path is None or self._write_fd is not None:
             self._touch(None)
         return self._db
 

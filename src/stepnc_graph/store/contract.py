@@ -110,6 +110,12 @@ class Store(Protocol):
 
     # -- writing --------------------------------------------------------------------------
 
+    def prepare_to_write(self) -> None:
+        """Make ready for a write that reads the store first: an on-disk store opened lazily takes
+        the writer's lock now (:class:`~stepnc_graph.store.StoreBusy` if another process writes) and
+        reads the newest published state; elsewhere nothing to do. The API's writers call it first."""
+        ...
+
     def replace_graph(self, graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None:

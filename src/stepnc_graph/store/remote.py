@@ -150,6 +150,9 @@ class RemoteStore:
                                else requests.auth.HTTPBasicAuth(*endpoint.auth))
         self._http.verify = endpoint.verify
 
+    def prepare_to_write(self) -> None:
+        """Nothing to take: the endpoint orders concurrent updates itself."""
+
     def close(self) -> None:
         self._http.close()
 

@@ -232,6 +232,7 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
     """Load the files into a throw-away store (Part 21 by the loader, and JSON-LD program graphs
     when the ISO shapes run; other RDF by :mod:`.rdfdata`) and check each file's graph."""
     from stepnc_graph.loading.loader import load_paths as load
+    from stepnc_graph.loading.sources import STDIN_GRAPH
 
     rdf = [p for p in paths if rdf_format(p, programs=iso_shapes) is not None and not p.is_dir()]
     programs = [p for p in paths if p not in rdf]
@@ -243,7 +244,7 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
             phase(f"loading {len(programs):,} file(s): {100 * position // max(total, 1)} %")
 
         loaded = load(store, programs, lenient=lenient, derived=False, positions=_reads_positions(checks),
-                      edition=edition, progress=read) if programs else []
+                      edition=edition, progress=read, stdin_graph=STDIN_GRAPH) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
         mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
@@ -310,9 +311,10 @@ MEMORY_VALIDATION_BYTES = 16_000_000
 
 def _input_bytes(paths: Sequence[str | Path]) -> int:
     """The size of the files to validate, as the load will find them (standard input counts 0)."""
-    from stepnc_graph.loading.sources import plan_sources
+    from stepnc_graph.loading.sources import STDIN_GRAPH, plan_sources
 
-    return sum(s.path.stat().st_size for s in plan_sources(list(paths)) if s.path is not None)
+    return sum(s.path.stat().st_size for s in plan_sources(list(paths), stdin_graph=STDIN_GRAPH)
+               if s.path is not None)
 
 
 @contextmanager
@@ -325,7 +327,7 @@ def throwaway_store(paths: Sequence[str | Path]) -> Iterator[Any]:
             yield store
         return
     with tempfile.TemporaryDirectory(prefix="stepnc-graph-validate-") as tmp:
-        with open_store(Path(tmp) / "store") as store:
+        with open_store(Path(tmp) / "store", readonly=False) as store:  # written through .oxigraph
             yield store
 
 
