@@ -322,3 +322,12 @@ def test_each_box_shows_its_operation_feature_technology_and_tool() -> None:
     _, shaft = plan_of(EXAMPLE)
     assert shaft.steps[0].technology is not None
     assert shaft.steps[0].technology.values == (("feedrate", "0.25"), ("speed", "180"), ("max_speed", "2500"))
+
+
+def test_a_2001_program_names_its_tool_bodies_by_its_own_classes() -> None:
+    """The 2001 edition's centre drill is ``center_drill``, the same class as 2002's ``centerdrill``
+    (owl:equivalentClass): its body type is named as the program gives it, not 'no tool body'."""
+    _, plan = plan_of(FIXTURES / "editions" / "plate_fdis2001.stp")
+    assert [s.tool_body for s in plan.steps] == ["center_drill", "boring_tool"]
+    assert list(legend(ET.fromstring(plan.svg()))) == ["center_drill", "boring_tool"]
+    assert plan.steps[0].technology is not None and plan.steps[0].technology.cls == "milling_technology"

@@ -195,27 +195,32 @@ _STEP_THINGS = "?s sga:executes|sga:workplan|sga:setup|sga:tool|sga:feature|attr
 _PROJECTS = "SELECT ?n ?label WHERE { GRAPH ?g { ?p stepnc:project.its_id ?label ; p21:id ?n } }"
 #: the file the program was read from (dcterms:source, on the program's graph node)
 _SOURCE = "SELECT ?src WHERE { GRAPH ?g { ?g <http://purl.org/dc/terms/source> ?src } } LIMIT 1"
-#: every tool's body (``body``) and the class the program's graph gives each tool body (``class``), a
-#: scan each, joined in Python (0.03 CPU-s at 100k instances, against 0.26 looking up the bodies of
-#: the steps' tools; Virtuoso 7.2 drops rows of a join of the two as sub-SELECTs)
+#: the vocabulary's classes under ``ROOT``, an older edition's names of them too (equivalent classes;
+#: ``(rdfs:subClassOf|owl:equivalentClass)*`` joined with the program took 20 CPU-s at 100k instances)
+_CLASSES = """
+SELECT ?cls WHERE { { ?cls rdfs:subClassOf* ROOT } UNION { ?cls owl:equivalentClass ?c . ?c rdfs:subClassOf* ROOT } }"""
+#: every tool's body (``body``) and the class the program's graph gives each tool body (``class``, one
+#: of ``CLASSES``), a scan each, joined in Python (0.05 CPU-s at 100k instances, against 0.26 looking
+#: up the bodies of the steps' tools; Virtuoso 7.2 drops rows of a join of the two as sub-SELECTs)
 _BODIES = """
 SELECT ?s ?p ?o WHERE {
   { ?s attr:its_tool_body ?o BIND("body" AS ?p) }
-  UNION { ?cls rdfs:subClassOf* stepnc:tool_body . GRAPH ?g { ?s a ?cls } BIND(STR(?cls) AS ?o) BIND("class" AS ?p) }
+  UNION { VALUES ?cls { CLASSES } GRAPH ?g { ?s a ?cls } BIND(STR(?cls) AS ?o) BIND("class" AS ?p) }
 }"""
 #: the vocabulary's attributes of the classes under ``ROOTS`` (their ranges, Part 21 positions)
 _ATTRIBUTES = """
 SELECT ?root ?p ?range ?pos WHERE {
   VALUES ?root { ROOTS } ?d rdfs:subClassOf* ?root . ?p rdfs:domain ?d ; rdfs:range ?range OPTIONAL { ?p p21:position ?pos }
 }"""
-#: the technologies: which operation has which (``technology``), their classes (``class``), the
+#: the technologies: which operation has which (``technology``), their classes (``class``, one of
+#: ``CLASSES``), the
 #: values of the attributes ``NUMBERS`` names and the entities ``REFS`` names: each property one
 #: scan of the program (0.3 CPU-s at 100k instances; one query looking up every triple of each
 #: technology and of what it names, filtered for numbers, took 30)
 _TECHNOLOGIES = """
 SELECT ?s ?p ?o WHERE {
   { ?s attr:its_technology ?o BIND("technology" AS ?p) }
-  UNION { ?cls rdfs:subClassOf* stepnc:technology . GRAPH ?g { ?s a ?cls } BIND(STR(?cls) AS ?o) BIND("class" AS ?p) }
+  UNION { VALUES ?cls { CLASSES } GRAPH ?g { ?s a ?cls } BIND(STR(?cls) AS ?o) BIND("class" AS ?p) }
   UNION { VALUES ?p { NUMBERS } GRAPH ?g { ?s ?p ?o } }
   UNION { VALUES ?p { REFS } GRAPH ?g { ?s ?p ?o } }
 }"""
@@ -437,7 +442,8 @@ def _technologies(store: Store, graph: str) -> dict[str, Technology]:
     kept = {p for p, range_ in refs.items() if any(root == range_ for root, _ in nested.values())}
     numbers = {p: (0, pos) for p, (_, pos) in own.items()} | {p: (1, pos) for p, (_, pos) in nested.items()}
     query = (_TECHNOLOGIES.replace("NUMBERS", " ".join(f"<{p}>" for p in numbers) or "<urn:none>")
-             .replace("REFS", " ".join(f"<{p}>" for p in sorted(kept)) or "<urn:none>"))
+             .replace("REFS", " ".join(f"<{p}>" for p in sorted(kept)) or "<urn:none>")
+             .replace("CLASSES", _classes(store, graph, "technology")))
     uses: dict[str, str] = {}
     classes: dict[str, str] = {}
     states: dict[str, list[tuple[tuple[int, int, str], str]]] = defaultdict(list)
@@ -460,6 +466,13 @@ def _technologies(store: Store, graph: str) -> dict[str, Technology]:
     return {op: techs[t] for op, t in uses.items()}
 
 
+def _classes(store: Store, graph: str, root: str) -> str:
+    """The vocabulary's classes under the entity ``root`` (and their older editions' names), as a
+    SPARQL ``VALUES`` list."""
+    found = _rows(store, graph, _CLASSES.replace("ROOT", f"<{STEPNC_NS}{root}>"))
+    return " ".join(sorted({f"<{cls}>" for (cls,) in found})) or "<urn:none>"
+
+
 def _number(text: str) -> str:
     """A number as the shortest text that reads back as it (``180``, ``0.25``): stores write a double's
     canonical form differently (Oxigraph ``180``, Virtuoso ``180.0``)."""
@@ -476,7 +489,7 @@ def _tool_bodies(store: Store, graph: str) -> dict[str, str]:
     """Tool IRI -> the class of its body (a body of several classes: them all, joined by ``&``)."""
     bodies: dict[str, str] = {}
     classes: dict[str, set[str]] = defaultdict(set)
-    for s, p, o in _rows(store, graph, _BODIES):
+    for s, p, o in _rows(store, graph, _BODIES.replace("CLASSES", _classes(store, graph, "tool_body"))):
         if p == "body":
             bodies[s] = o
         else:
