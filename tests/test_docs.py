@@ -357,7 +357,7 @@ _TOUR = {
     "stepnc-graph query tool-changes": ["WS5 RELIEF GROOVE", "WS6 FACE LEFT FINISH", "2 row(s)"],
     "stepnc-graph query workingsteps-by-tool-type": ["WS5 RELIEF GROOVE", "T02 GROOVING 3MM", "1 row(s)"],
     "stepnc-graph query -e": ["shaft_two_setups.stp/i30"],
-    "stepnc-graph plan": ["8 workingsteps, 2 tool changes", "WS5 RELIEF GROOVE"],
+    "stepnc-graph plan": ["SHAFT-42 (", "8 workingsteps, 2 tool changes", "WS5 RELIEF GROOVE"],
     "stepnc-graph schema entity": ["its_features : LIST [2:?] OF manufacturing_feature"],
     "stepnc-graph ontology build --check": ["0 stale"],
     "stepnc-graph ontology stats": ["turning_schema"],

@@ -154,6 +154,11 @@ def test_a_large_plan_is_drawn_in_pages_of_readable_width(tmp_path: Path) -> Non
     for page in range(1, plan.pages() + 1):
         root = ET.fromstring(plan.svg(page))
         assert float(root.get("width", "0")) <= 1600
+        entries = legend(root)  # the runs wear their tool body type's colour, named in the legend
+        assert set(entries) == {"general_turning_tool", "grooving_tool", "knurling_tool", "turning_threading_tool",
+                                "twist_drill"}
+        for g in boxes(root, "block"):
+            assert g.find(f"{SVG}rect").get("fill") == entries[g.get("data-tool-body", "")][0]  # type: ignore[union-attr]
         assert not [g for g in root.iter(f"{SVG}g") if g.get("class") == "workingstep"]
         for g in root.iter(f"{SVG}g"):
             kind = g.get("class", "")
@@ -189,3 +194,140 @@ def test_a_plan_without_its_graph_says_so() -> None:
     assert [s.order for s in plan.steps] == list(range(1, 9)) and plan.tool_changes()
     with pytest.raises(PlanError, match="network=True"):
         plan.graph  # noqa: B018
+
+
+# -- the picture's title, its legend by tool body type, what each box says (issue 31, item 12) --
+
+
+def variant(tmp_path: Path, name: str, *edits: tuple[str, str]) -> Path:
+    """The shaft example with text replaced (each edit must apply), written as ``name``."""
+    text = EXAMPLE.read_text()
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def svg_of(path: Path) -> ET.Element:
+    return ET.fromstring(plan_of(path)[1].svg())
+
+
+def heading(root: ET.Element) -> str:
+    return "".join(next(t for t in root.iter(f"{SVG}text") if t.get("class") == "title").itertext())
+
+
+def legend(root: ET.Element) -> dict[str, tuple[str, str]]:
+    """Tool body type -> (swatch fill, the entry's text), in the legend's order."""
+    out = {}
+    for g in root.iter(f"{SVG}g"):
+        if g.get("class") == "legend-type":
+            rect = g.find(f"{SVG}rect")
+            assert rect is not None
+            out[g.get("data-type", "")] = (rect.get("fill", ""), "".join(g.itertext()))
+    return out
+
+
+def boxes(root: ET.Element, kind: str = "workingstep") -> list[ET.Element]:
+    return [g for g in root.iter(f"{SVG}g") if (g.get("class") or "").split()[:1] == [kind]]
+
+
+def test_the_picture_and_the_summary_are_titled_by_the_project() -> None:
+    _, plan = plan_of(EXAMPLE)
+    assert plan.title == "SHAFT-42" and plan.projects == ["SHAFT-42"]
+    root = ET.fromstring(plan.svg())
+    assert heading(root) == "SHAFT-42"
+    assert "SHAFT-42" in (root.findtext(f"{SVG}title") or "")
+    done = CliRunner().invoke(main, ["plan", str(EXAMPLE)])
+    first = done.stdout.splitlines()[0]
+    assert done.exit_code == 0 and first.startswith("SHAFT-42 (") and first.endswith("8 workingsteps, 2 tool changes")
+    doc = json.loads(CliRunner().invoke(main, ["plan", str(EXAMPLE), "--format", "json"]).stdout)
+    assert doc["title"] == "SHAFT-42" and doc["projects"] == ["SHAFT-42"]
+
+
+def test_a_program_without_a_project_is_titled_by_its_file_name(tmp_path: Path) -> None:
+    path = variant(tmp_path, "no_project.stp", ("#1=PROJECT('SHAFT-42',#2,(#10),$,$,$);\n", ""))
+    _, plan = plan_of(path)
+    assert plan.projects == [] and plan.title == "no_project.stp"
+    assert heading(ET.fromstring(plan.svg())) == "no_project.stp"
+    # loaded under another graph IRI, the file it was read from still names it
+    store = sg.open_store(memory=True)
+    sg.load(store, [path], base_iri="https://example.org/programs/42")
+    assert build_plan(store).title == "no_project.stp"
+
+
+def test_the_legend_names_each_tool_body_type_and_boxes_wear_its_colour(tmp_path: Path) -> None:
+    root = svg_of(EXAMPLE)
+    entries = legend(root)
+    assert list(entries) == ["general_turning_tool", "grooving_tool"]
+    assert "T01 CNMG 120408 #100" in entries["general_turning_tool"][1]
+    assert "T02 GROOVING 3MM #110" in entries["grooving_tool"][1]
+    body = {"#100": "general_turning_tool", "#110": "grooving_tool"}  # the tool bodies #101 and #111
+    steps = boxes(root)
+    assert len(steps) == 8
+    for g in steps:
+        assert g.get("data-tool-body") == body[g.get("data-tool", "")]
+        assert g.find(f"{SVG}rect").get("fill") == entries[body[g.get("data-tool", "")]][0]  # type: ignore[union-attr]
+    assert entries["general_turning_tool"][0] != entries["grooving_tool"][0]
+    # two tools with one body type: one colour, one legend entry naming both
+    same = variant(tmp_path, "two_turning_tools.stp", ("GROOVING_TOOL(#112,.NEUTRAL.,6.,$,25.,25.,.CCW.,3.,0.2)",
+                                                       "GENERAL_TURNING_TOOL(#112,.NEUTRAL.,6.,$,25.,25.,.CCW.)"))
+    root = svg_of(same)
+    entries = legend(root)
+    assert list(entries) == ["general_turning_tool"]
+    assert "T01 CNMG 120408 #100" in entries["general_turning_tool"][1] and "T02 GROOVING 3MM #110" in \
+        entries["general_turning_tool"][1]
+    assert {g.find(f"{SVG}rect").get("fill") for g in boxes(root)} == {entries["general_turning_tool"][0]}  # type: ignore[union-attr]
+
+
+def test_the_legend_names_steps_without_a_tool_body_or_a_tool(tmp_path: Path) -> None:
+    path = variant(tmp_path, "no_body.stp", ("'T02 GROOVING 3MM',#111,", "'T02 GROOVING 3MM',$,"))
+    root = svg_of(path)
+    entries = legend(root)
+    assert list(entries) == ["general_turning_tool", "no tool body"]
+    assert "T02 GROOVING 3MM #110" in entries["no tool body"][1]
+    [groove] = [g for g in boxes(root) if g.get("data-tool") == "#110"]
+    assert groove.get("data-tool-body") == "no tool body"
+    assert groove.find(f"{SVG}rect").get("fill") == entries["no tool body"][0]  # type: ignore[union-attr]
+    root = svg_of(STRUCTURES)  # rapid movements: no tool at all
+    entries = legend(root)
+    assert list(entries) == ["no tool"]
+    assert {g.find(f"{SVG}rect").get("fill") for g in boxes(root)} == {entries["no tool"][0]}  # type: ignore[union-attr]
+
+
+def test_the_sleeve_legend_has_turning_and_milling_tool_bodies() -> None:
+    entries = legend(svg_of(SLEEVE))
+    assert list(entries) == ["general_turning_tool", "grooving_tool", "knurling_tool", "turning_threading_tool",
+                             "twist_drill"]
+    assert len({fill for fill, _ in entries.values()}) == 5
+
+
+def test_each_box_shows_its_operation_feature_technology_and_tool() -> None:
+    _, plan = plan_of(SLEEVE)
+    root = ET.fromstring(plan.svg())
+    texts = {g.get("data-ref"): " ".join(t.text or "" for t in g.iter(f"{SVG}text")) for g in boxes(root)}
+    first = texts["#30"]  # the sleeve's first workingstep
+    ws = next(s for s in plan.steps if s.workingstep.ref == "#30")
+    assert ws.operation is not None and ws.operation.cls in first
+    assert all(f.label in first for f in ws.features) and ws.tool is not None and ws.tool.label in first
+    assert ws.technology is not None and "feedrate=" in first
+    # the drilling step: a milling technology's feedrate and spindle speed, the drill
+    drill = next(s for s in plan.steps if s.workingstep.label == "WS10 DRILL 18")
+    text = texts[drill.workingstep.ref]
+    assert "feedrate=0.12" in text and "spindle=1400" in text and "T05 DRILL 18" in text
+    assert "drilling" in text
+    assert drill.technology is not None and dict(drill.technology.values) == {"feedrate": "0.12", "spindle": "1400"}
+    # a turning technology's speed comes from its spindle speed entity
+    _, shaft = plan_of(EXAMPLE)
+    assert shaft.steps[0].technology is not None
+    assert shaft.steps[0].technology.values == (("feedrate", "0.25"), ("speed", "180"), ("max_speed", "2500"))
+
+
+def test_a_2001_program_names_its_tool_bodies_by_its_own_classes() -> None:
+    """The 2001 edition's centre drill is ``center_drill``, the same class as 2002's ``centerdrill``
+    (owl:equivalentClass): its body type is named as the program gives it, not 'no tool body'."""
+    _, plan = plan_of(FIXTURES / "editions" / "plate_fdis2001.stp")
+    assert [s.tool_body for s in plan.steps] == ["center_drill", "boring_tool"]
+    assert list(legend(ET.fromstring(plan.svg()))) == ["center_drill", "boring_tool"]
+    assert plan.steps[0].technology is not None and plan.steps[0].technology.cls == "milling_technology"

@@ -39,8 +39,9 @@ def _fail(message: str) -> None:
 @click.option("--graphml", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write the plan graph as GraphML (for yEd, Gephi, Cytoscape).")
 @click.option("--svg", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Also write a picture: setups as lanes, workingsteps in order coloured by tool, tool changes "
-                   "marked, rough/finish pairs joined.")
+              help="Also write a picture, titled by the project: setups as lanes, workingsteps in order (operation, "
+                   "feature, technology, tool) coloured by tool body type with a legend, tool changes marked, "
+                   "rough/finish pairs joined.")
 @click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="The picture as PNG (needs: pip install 'stepnc-graph[png]').")
 @click.option("--page", type=click.IntRange(min=1), default=1, show_default=True,
@@ -53,9 +54,9 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     """The workplan of PROGRAM (a Part 21 file; - reads it from standard input) or of a program
     in the store.
 
-    Prints the execution order by setup, the tool changes, precedence errors
-    (finishing before roughing on a feature), tools shared across setups and
-    the critical (most used) tool. Exit 2 for bad input.
+    Prints the project's name, the execution order by setup, the tool changes,
+    precedence errors (finishing before roughing on a feature), tools shared
+    across setups and the critical (most used) tool. Exit 2 for bad input.
     """
     from stepnc_graph.workplan.plan import PlanError, build_plan
     from stepnc_graph.workplan.plan import png as to_png
@@ -102,8 +103,9 @@ def _print_summary(plan: object) -> None:
 
     assert isinstance(plan, Plan)
     changes = plan.tool_changes()
-    out.print(f"[bold]{escape(plan.program)}[/]: {len(plan.steps)} workingsteps, {len(changes)} tool changes",
-              markup=True, highlight=False)
+    # the project's name first (a program without one: its graph's IRI, which ends in its file name)
+    named = f"[bold]{escape(plan.title)}[/] ({escape(plan.program)})" if plan.projects else f"[bold]{escape(plan.program)}[/]"
+    out.print(f"{named}: {len(plan.steps)} workingsteps, {len(changes)} tool changes", markup=True, highlight=False)
     changed = {c.order for c in changes}
     for setup, steps in plan.workingsteps_per_setup().items():
         out.print(f"  [bold]{escape(setup or '(no setup)')}[/]", markup=True, highlight=False)

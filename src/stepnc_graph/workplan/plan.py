@@ -11,11 +11,11 @@ before a roughing step on the same feature), workingsteps per setup, tools share
 and the critical (most used) tool.
 
 The picture is written by our own small SVG writer (no plotting dependency; networkx's drawing
-needs matplotlib and knows nothing of lanes): setups are lanes, workingsteps boxes in execution
-order coloured by tool, in rows of a readable width, tool changes marked, rough -> finish pairs of
-a feature joined by arcs (red and dashed when the finish comes first); a large plan is drawn as
-runs of steps with one setup and one tool, in pages (:class:`PlanPicture`). PNG needs the ``png``
-extra (cairosvg).
+needs matplotlib and knows nothing of lanes): titled by the program's project, setups are lanes,
+workingsteps boxes in execution order coloured by the body type of their tool (a legend names
+each), in rows of a readable width, tool changes marked, rough -> finish pairs of a feature joined
+by arcs (red and dashed when the finish comes first); a large plan is drawn as runs of steps with
+one setup and one tool, in pages (:class:`PlanPicture`). PNG needs the ``png`` extra (cairosvg).
 """
 
 from __future__ import annotations
@@ -26,12 +26,14 @@ import json
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from html import escape
+from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
+from urllib.parse import unquote
 
 import pyoxigraph as ox
 
 from stepnc_graph.core.errors import StepncGraphError, listed_by, option
-from stepnc_graph.core.naming import VOCABULARY_GRAPH, derived_graph_iri, program_graphs
+from stepnc_graph.core.naming import STEPNC_NS, VOCABULARY_GRAPH, derived_graph_iri, instance_id, program_graphs
 from stepnc_graph.querying.query import PREFIXES
 
 if TYPE_CHECKING:
@@ -63,6 +65,26 @@ class Thing:
     cls: str = ""
 
 
+@dataclass(frozen=True)
+class Technology:
+    """An operation's technology: #id, class and the numbers it states (``values``: attribute name
+    and value, the shortest text of the number; its own attributes first, then those of the
+    entities it names -- a turning technology's spindle speed --, each in Part 21 parameter order)."""
+
+    iri: str
+    ref: str
+    cls: str
+    values: tuple[tuple[str, str], ...] = ()
+
+    def text(self, sep: str = " ") -> str:
+        """``feedrate=0.25 speed=180 ...`` (the class when it states no number)."""
+        return sep.join(f"{k}={v}" for k, v in self.values) or self.cls
+
+
+#: the legend's names for steps whose tool has no body, and steps without a tool
+NO_TOOL_BODY, NO_TOOL = "no tool body", "no tool"
+
+
 @dataclass
 class Step:
     """One step of the execution order."""
@@ -78,6 +100,10 @@ class Step:
     #: the first step of a root of the execution order (a project's main workplan): the tool it
     #: takes is loaded, not changed (the derived layer's rule, see stepnc_graph.loading.derive)
     starts_root: bool = False
+    technology: Technology | None = None
+    #: the class of the tool's body as the program's graph types it (``general_turning_tool``,
+    #: ``twist_drill``, ...), :data:`NO_TOOL_BODY` or :data:`NO_TOOL`
+    tool_body: str = NO_TOOL
 
 
 @dataclass(frozen=True)
@@ -165,6 +191,41 @@ SELECT ?x ?label ?n ?cls WHERE {
   OPTIONAL { { SELECT ?x ?label WHERE { ?x attr:its_id ?label } } }
 }"""
 _STEP_THINGS = "?s sga:executes|sga:workplan|sga:setup|sga:tool|sga:feature|attr:its_operation ?x"
+#: the program's projects (its_id, #id): the plan's title
+_PROJECTS = "SELECT ?n ?label WHERE { GRAPH ?g { ?p stepnc:project.its_id ?label ; p21:id ?n } }"
+#: the file the program was read from (dcterms:source, on the program's graph node)
+_SOURCE = "SELECT ?src WHERE { GRAPH ?g { ?g <http://purl.org/dc/terms/source> ?src } } LIMIT 1"
+#: the vocabulary's classes under ``ROOT``, an older edition's names of them too (equivalent classes;
+#: ``(rdfs:subClassOf|owl:equivalentClass)*`` joined with the program took 20 CPU-s at 100k instances)
+_CLASSES = """
+SELECT ?cls WHERE { { ?cls rdfs:subClassOf* ROOT } UNION { ?cls owl:equivalentClass ?c . ?c rdfs:subClassOf* ROOT } }"""
+#: every tool's body (``body``) and the class the program's graph gives each tool body (``class``, one
+#: of ``CLASSES``), a scan each, joined in Python (0.05 CPU-s at 100k instances, against 0.26 looking
+#: up the bodies of the steps' tools; Virtuoso 7.2 drops rows of a join of the two as sub-SELECTs)
+_BODIES = """
+SELECT ?s ?p ?o WHERE {
+  { ?s attr:its_tool_body ?o BIND("body" AS ?p) }
+  UNION { VALUES ?cls { CLASSES } GRAPH ?g { ?s a ?cls } BIND(STR(?cls) AS ?o) BIND("class" AS ?p) }
+}"""
+#: the vocabulary's attributes of the classes under ``ROOTS`` (their ranges, Part 21 positions)
+_ATTRIBUTES = """
+SELECT ?root ?p ?range ?pos WHERE {
+  VALUES ?root { ROOTS } ?d rdfs:subClassOf* ?root . ?p rdfs:domain ?d ; rdfs:range ?range OPTIONAL { ?p p21:position ?pos }
+}"""
+#: the technologies: which operation has which (``technology``), their classes (``class``, one of
+#: ``CLASSES``), the
+#: values of the attributes ``NUMBERS`` names and the entities ``REFS`` names: each property one
+#: scan of the program (0.3 CPU-s at 100k instances; one query looking up every triple of each
+#: technology and of what it names, filtered for numbers, took 30)
+_TECHNOLOGIES = """
+SELECT ?s ?p ?o WHERE {
+  { ?s attr:its_technology ?o BIND("technology" AS ?p) }
+  UNION { VALUES ?cls { CLASSES } GRAPH ?g { ?s a ?cls } BIND(STR(?cls) AS ?o) BIND("class" AS ?p) }
+  UNION { VALUES ?p { NUMBERS } GRAPH ?g { ?s ?p ?o } }
+  UNION { VALUES ?p { REFS } GRAPH ?g { ?s ?p ?o } }
+}"""
+#: the XML Schema datatypes of numbers
+_NUMERIC = {f"http://www.w3.org/2001/XMLSchema#{t}" for t in ("double", "float", "decimal", "integer", "int", "long")}
 _MORE_THINGS = "{ ?s attr:its_technology ?x } UNION { ?x stepnc:project.main_workplan ?w }"
 #: the same for a few things by IRI
 _THING = """
@@ -174,12 +235,34 @@ SELECT ?x ?label ?n ?cls WHERE { GRAPH ?g { ?x p21:id ?n OPTIONAL { ?x a ?cls } 
 class Plan:
     """The plan of one loaded program: the execution ``steps`` and ``graph`` (a networkx MultiDiGraph;
     ``build_plan(..., network=False)`` leaves it out: the analyses, the summary text and the picture
-    need the steps only)."""
+    need the steps only), the program's ``projects`` (their its_id, in #id order) and the file it was
+    read from (``source``, as its load recorded it; None if unknown)."""
 
-    def __init__(self, program: str, steps: list[Step], graph: nx.MultiDiGraph | None = None) -> None:
+    def __init__(self, program: str, steps: list[Step], graph: nx.MultiDiGraph | None = None, *,
+                 projects: list[str] | None = None, source: str | None = None) -> None:
         self.program = program
         self.steps = steps
         self._graph = graph
+        self.projects = projects or []
+        self.source = source
+
+    @property
+    def title(self) -> str:
+        """What the plan is called: its project's its_id (a program of several projects: the first
+        three, and how many more). A program without a project (ISO 14649 requires one, but a
+        fragment loads too) falls back to the name of the file its graph was loaded from, else to
+        the last segment of the graph's IRI."""
+        if self.projects:
+            more = len(self.projects) - 3
+            return ", ".join(self.projects[:3]) + (f" and {more} more projects" if more > 0 else "")
+        return self.file_name
+
+    @property
+    def file_name(self) -> str:
+        """The name of the file the program was loaded from, else the last segment of its graph IRI."""
+        if self.source:
+            return PurePath(self.source).name or self.source
+        return unquote(self.program.rstrip("/#").rsplit("/", 1)[-1]) or self.program
 
     @property
     def graph(self) -> nx.MultiDiGraph:
@@ -266,6 +349,8 @@ class Plan:
         critical = self.critical_tool()
         return {
             "program": self.program,
+            "title": self.title,
+            "projects": self.projects,
             "workingsteps": len(self.steps),
             "setups": {k: [s.order for s in v] for k, v in self.workingsteps_per_setup().items()},
             "tool_changes": [{"order": c.order, "workingstep": c.workingstep.label, "ref": c.workingstep.ref,
@@ -278,8 +363,9 @@ class Plan:
             if critical else None,
             "steps": [{"order": s.order, "workingstep": s.workingstep.label, "ref": s.workingstep.ref,
                        "setup": s.setup.label if s.setup else None, "tool": s.tool.label if s.tool else None,
-                       "tool_ref": s.tool.ref if s.tool else None, "kind": s.kind,
-                       "features": [f.ref for f in s.features]} for s in self.steps],
+                       "tool_ref": s.tool.ref if s.tool else None, "tool_body": s.tool_body, "kind": s.kind,
+                       "operation": s.operation.cls if s.operation else None, "features": [f.ref for f in s.features],
+                       "technology": dict(s.technology.values) if s.technology else None} for s in self.steps],
             "graph": {"nodes": self.graph.number_of_nodes(), "edges": self.graph.number_of_edges()},
         }
 
@@ -332,27 +418,126 @@ def _elements(store: Store, graph: str) -> list[tuple[str, str, int]]:
     return out
 
 
+def _attributes(store: Store, graph: str, roots: set[str]) -> tuple[dict[str, tuple[str, int]], dict[str, str]]:
+    """The attributes the vocabulary declares on the classes ``roots`` and their subclasses: those
+    whose values are numbers (IRI -> the root, Part 21 position), and those that name entities
+    (IRI -> the class they name)."""
+    numbers: dict[str, tuple[str, int]] = {}
+    refs: dict[str, str] = {}
+    for root, p, range_, pos in _rows(store, graph, _ATTRIBUTES.replace("ROOTS", " ".join(f"<{r}>" for r in roots))):
+        if range_ in _NUMERIC:
+            numbers[p] = (root, int(pos or 0))
+        elif not range_.startswith("http://www.w3.org/"):
+            refs[p] = range_
+    return numbers, refs
+
+
+def _technologies(store: Store, graph: str) -> dict[str, Technology]:
+    """Operation IRI -> its technology, with the numbers the technology states: its own attributes'
+    and, after them, those of the entities it names (a turning technology's spindle speed), each in
+    Part 21 parameter order. Which attributes hold numbers the vocabulary says, for any class of
+    technology."""
+    own, refs = _attributes(store, graph, {STEPNC_NS + "technology"})
+    nested, _ = _attributes(store, graph, set(refs.values())) if refs else ({}, {})
+    kept = {p for p, range_ in refs.items() if any(root == range_ for root, _ in nested.values())}
+    numbers = {p: (0, pos) for p, (_, pos) in own.items()} | {p: (1, pos) for p, (_, pos) in nested.items()}
+    query = (_TECHNOLOGIES.replace("NUMBERS", " ".join(f"<{p}>" for p in numbers) or "<urn:none>")
+             .replace("REFS", " ".join(f"<{p}>" for p in sorted(kept)) or "<urn:none>")
+             .replace("CLASSES", _classes(store, graph, "technology")))
+    uses: dict[str, str] = {}
+    classes: dict[str, str] = {}
+    states: dict[str, list[tuple[tuple[int, int, str], str]]] = defaultdict(list)
+    links: dict[str, list[str]] = defaultdict(list)
+    for s, p, o in _rows(store, graph, query):
+        if p == "technology":
+            uses[s] = o
+        elif p == "class":
+            classes[s] = o.rsplit("#", 1)[-1]
+        elif p in numbers:
+            states[s].append((numbers[p] + (p,), _number(o)))
+        else:
+            links[s].append(o)
+    techs: dict[str, Technology] = {}
+    for tech in set(uses.values()):
+        values = states[tech] + [v for x in links[tech] for v in states[x]]
+        n = instance_id(graph, tech)
+        techs[tech] = Technology(tech, f"#{n}" if n is not None else "", classes.get(tech, ""),
+                                 tuple((key[2].rsplit("#", 1)[-1].rsplit(".", 1)[-1], v) for key, v in sorted(values)))
+    return {op: techs[t] for op, t in uses.items()}
+
+
+def _classes(store: Store, graph: str, root: str) -> str:
+    """The vocabulary's classes under the entity ``root`` (and their older editions' names), as a
+    SPARQL ``VALUES`` list."""
+    found = _rows(store, graph, _CLASSES.replace("ROOT", f"<{STEPNC_NS}{root}>"))
+    return " ".join(sorted({f"<{cls}>" for (cls,) in found})) or "<urn:none>"
+
+
+def _number(text: str) -> str:
+    """A number as the shortest text that reads back as it (``180``, ``0.25``): stores write a double's
+    canonical form differently (Oxigraph ``180``, Virtuoso ``180.0``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    if value.is_integer() and abs(value) < 1e15:
+        return str(int(value))
+    return repr(value)
+
+
+def _tool_bodies(store: Store, graph: str) -> dict[str, str]:
+    """Tool IRI -> the class of its body (a body of several classes: them all, joined by ``&``)."""
+    bodies: dict[str, str] = {}
+    classes: dict[str, set[str]] = defaultdict(set)
+    for s, p, o in _rows(store, graph, _BODIES.replace("CLASSES", _classes(store, graph, "tool_body"))):
+        if p == "body":
+            bodies[s] = o
+        else:
+            classes[s].add(o.rsplit("#", 1)[-1])
+    return {tool: " & ".join(sorted(classes[body])) for tool, body in bodies.items() if classes.get(body)}
+
+
 def _steps(store: Store, graph: str, info: dict[str, Thing], features: dict[str, list[str]],
            operations: dict[str, str]) -> list[Step]:
-    """The execution steps in order, with the things they name and whether they rough or finish."""
+    """The execution steps in order, with the things they name, whether they rough or finish and
+    their tool's body type (:func:`_add_technologies` adds the technologies)."""
     kinds: dict[str, str] = {}
     for iri, kind in _rows(store, graph, _KINDS):
         if kinds.get(iri) != "rough":  # an operation that is both (none in ISO 14649) counts as roughing
             kinds[iri] = kind
     last = {int(order) for (order,) in _rows(store, graph, _LAST)}
+    bodies = _tool_bodies(store, graph)
     steps: list[Step] = []
     for order, ws, wp, setup, tool in sorted(_rows(store, graph, _STEPS), key=lambda r: int(r[0])):
         op = operations.get(ws)
         steps.append(Step(int(order), info.get(ws) or Thing(ws, "", "", ""), _thing(info, wp), _thing(info, setup),
                           _thing(info, tool), _thing(info, op),
                           [f for f in (_thing(info, x) for x in sorted(features.get(ws, ()))) if f is not None],
-                          kinds.get(op, "") if op else "", starts_root=not steps or steps[-1].order in last))
+                          kinds.get(op, "") if op else "", starts_root=not steps or steps[-1].order in last,
+                          tool_body=bodies.get(tool, NO_TOOL_BODY) if tool else NO_TOOL))
     return steps
+
+
+def _projects(store: Store, graph: str) -> list[str]:
+    """The its_id of the program's projects in #id order, each name once."""
+    names = [label for _, label in sorted(_rows(store, graph, _PROJECTS), key=lambda r: int(r[0]))]
+    return list(dict.fromkeys(names))
+
+
+def _add_technologies(store: Store, graph: str, steps: list[Step]) -> None:
+    """Each step's :attr:`Step.technology`: its operation's."""
+    technologies = _technologies(store, graph)
+    for s in steps:
+        if s.operation is not None:
+            s.technology = technologies.get(s.operation.iri)
 
 
 def build_plan(store: Store, graph: str | None = None, *, network: bool = True) -> Plan:
     """The plan of the program in ``graph`` (or the store's only program); without ``network``, the
-    steps only (no :attr:`Plan.graph`: what `stepnc-graph plan` needs for its summary and picture)."""
+    steps only (no :attr:`Plan.graph`: what `stepnc-graph plan` needs for its summary and picture),
+    and their technologies (:attr:`Step.technology`) only when the picture shows them, a box per
+    workingstep (at most :attr:`PlanPicture.DETAIL` steps: reading them takes 0.3 CPU-s for the
+    9,000 steps of a 100k-instance program, whose picture shows runs of steps)."""
     from stepnc_graph.graphs.vocabulary_graph import vocabulary_for_queries
 
     vocabulary_for_queries(store)
@@ -375,8 +560,11 @@ def build_plan(store: Store, graph: str | None = None, *, network: bool = True) 
         else:
             operations[s] = o
     steps = _steps(store, graph, info, features, operations)
+    projects, source = _projects(store, graph), next((src for (src,) in _rows(store, graph, _SOURCE)), None)
+    if network or len(steps) <= PlanPicture.DETAIL:
+        _add_technologies(store, graph, steps)
     if not network:
-        return Plan(graph, steps)
+        return Plan(graph, steps, projects=projects, source=source)
     _things(store, graph, _MORE_THINGS, info)
     edges += sorted({(s, p, o) for s, p, o in _rows(store, graph, _MORE_EDGES)}, key=lambda e: (e[1], e))
     elements = _elements(store, graph)
@@ -386,7 +574,7 @@ def build_plan(store: Store, graph: str | None = None, *, network: bool = True) 
         values = " ".join(f"<{x}>" for x in others)
         for x, label, n, cls in _rows(store, graph, _THING.replace("WHERE {", f"WHERE {{ VALUES ?x {{ {values} }}", 1)):
             info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
-    return Plan(graph, steps, _network(graph, steps, info, edges, elements))
+    return Plan(graph, steps, _network(graph, steps, info, edges, elements), projects=projects, source=source)
 
 
 def _network(program: str, steps: list[Step], info: dict[str, Thing], edges: list[tuple[str, str, str]],
@@ -467,39 +655,54 @@ def _block_key(s: Step) -> tuple[str | None, str | None]:
 class PlanPicture:
     """An SVG of the plan that stays readable at any size: at most :data:`ROW` boxes a row.
 
+    Titled by the plan's :attr:`Plan.title` (``<text class="title">``: the project's its_id, or the
+    file name of a program without a project). Boxes are coloured by the body type of their tool
+    (the class of the tool's ``its_tool_body`` as the program types it: ``general_turning_tool``,
+    ``grooving_tool``, ``twist_drill``, ...); the legend below has one entry per type shown, with
+    the tools of that type (``<g class="legend-type" data-type=..>``), and names steps whose tool
+    has no body (:data:`NO_TOOL_BODY`) or that have no tool (:data:`NO_TOOL`).
+
     Up to :data:`DETAIL` workingsteps, one box per workingstep in execution order, in rows of
-    :data:`ROW`; each row has one lane per setup; tool changes marked, rough -> finish pairs of a
-    feature joined by arcs (red and dashed when the finish comes first). Every workingstep box is
-    ``<g class="workingstep" data-order=.. data-ref=.. data-tool=..>``, every tool change ``<g
+    :data:`ROW`; each row has one lane per setup, named by it and the workplans its steps run in;
+    each box says the workingstep (its whole label, wrapped), #id and kind, the operation's class,
+    the feature(s), the technology's numbers (feedrate, spindle speed, ...) and the tool, and its
+    tooltip all of it uncut; tool changes marked, rough -> finish pairs of a feature joined by arcs
+    (red and dashed when the finish comes first). Every workingstep box is ``<g class="workingstep"
+    data-order=.. data-ref=.. data-tool=.. data-tool-body=..>``, every tool change ``<g
     class="tool-change" data-order=..>``, every rough/finish arc ``<path class="rough-finish"
     data-feature=..>`` (``precedence`` added when the finish comes first), every lane ``<g
     class="lane" data-setup=..>``, so the picture can be checked (and styled) by machine.
 
     Larger plans are summarised: one box per block of consecutive steps with one setup and one tool
-    (``<g class="block" data-first=.. data-last=.. data-steps=.. data-setup=.. data-tool=..>``,
-    ``precedence`` in its class when a finishing step in it runs before a roughing step on the same
-    feature), :data:`BLOCK_ROW` a row, :data:`PAGE_BLOCKS` a page; a tool change is marked before
-    the block it starts (``<g class="tool-change">``).
+    (``<g class="block" data-first=.. data-last=.. data-steps=.. data-setup=.. data-tool=..
+    data-tool-body=..>``, ``precedence`` in its class when a finishing step in it runs before a
+    roughing step on the same feature), :data:`BLOCK_ROW` a row, :data:`PAGE_BLOCKS` a page; a tool
+    change is marked before the block it starts (``<g class="tool-change">``).
     """
 
-    BOX_W, BOX_H, GAP, LANE_H, LEFT, TOP = 120, 62, 14, 104, 150, 70
+    BOX_W, BOX_H, GAP, LANE_H, LEFT, TOP = 170, 106, 14, 150, 150, 70
+    #: characters a box's line holds in :data:`BOX_W`: the label's (bold, 11 px), the others' (10 px)
+    BOX_BOLD, BOX_CHARS = 20, 23
     #: at most this many boxes a row, and the most steps shown one box each (beyond: blocks)
     ROW, DETAIL = 16, 48
-    #: tools the legend names at most (the blocks' tooltips name theirs)
-    LEGEND = 24
+    #: tool body types the legend names at most, and tools named per type (the boxes name theirs)
+    LEGEND, LEGEND_TOOLS, LEGEND_CHARS = 24, 4, 180
     BLOCK_W, BLOCK_H, BLOCK_ROW, PAGE_BLOCKS = 170, 64, 8, 120
+    #: the fills of boxes whose tool has no body, and of boxes without a tool
+    NO_BODY_FILL, NO_TOOL_FILL = "#ffffff", "#dddddd"
 
     def __init__(self, plan: Plan) -> None:
         self.plan = plan
         lanes: dict[str, None] = {}
-        tools: dict[str, int] = {}
+        types: dict[str, int] = {}
         for s in plan.steps:
             lanes.setdefault(s.setup.label if s.setup else "(no setup)")
-            if s.tool is not None:
-                tools.setdefault(s.tool.iri, len(tools))
+            if s.tool_body not in (NO_TOOL, NO_TOOL_BODY):
+                types.setdefault(s.tool_body, len(types))
         self.lanes = list(lanes)
         self.lane = {name: i for i, name in enumerate(self.lanes)}
-        self.tools = tools
+        #: tool body type -> its place in :data:`PALETTE` (in order of first use)
+        self.types = types
         n = len(plan.steps)
         #: boxes a row: rows as even as they can be (13 steps: one row, 20: two of 10)
         self.row = -(-n // -(-n // self.ROW)) if n else 1
@@ -514,9 +717,15 @@ class PlanPicture:
         return {lane: ", ".join(names) for lane, names in out.items()}
 
     def colour(self, step: Step) -> str:
-        if step.tool is None:
-            return "#dddddd"
-        return PALETTE[self.tools[step.tool.iri] % len(PALETTE)]
+        """The fill of a step's box: its tool body type's."""
+        return self.type_colour(step.tool_body)
+
+    def type_colour(self, tool_body: str) -> str:
+        if tool_body == NO_TOOL:
+            return self.NO_TOOL_FILL
+        if tool_body == NO_TOOL_BODY:
+            return self.NO_BODY_FILL
+        return PALETTE[self.types[tool_body] % len(PALETTE)]
 
     def pages(self) -> int:
         if len(self.plan.steps) <= self.DETAIL:
@@ -532,31 +741,52 @@ class PlanPicture:
         return self.summarised(page, pages)
 
     def _head(self, width: int, height: int, subtitle: str) -> list[str]:
+        plan = self.plan
+        if plan.projects:  # the file beside the project's name; a program without one is titled by it
+            subtitle = f"{plan.file_name}: {subtitle}"
         return [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
                 f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
-                f"<title>Workplan of {escape(self.plan.program)}</title>",
+                f"<title>Workplan of {escape(plan.title)} ({escape(plan.program)})</title>",
                 '<defs><marker id="arrow" markerWidth="8" markerHeight="8" refX="7" refY="4" orient="auto">'
                 '<path d="M0,0 L8,4 L0,8 z" fill="#555"/></marker></defs>',
-                f'<text x="10" y="24" font-size="15" font-weight="bold">{escape(self.plan.program)}</text>',
+                f'<text class="title" x="10" y="24" font-size="15" font-weight="bold">{escape(plan.title)}</text>',
                 f'<text x="10" y="44" fill="#444">{escape(subtitle)}</text>']
 
-    def _legend(self, y: int, steps: list[Step] | tuple[Step, ...]) -> list[str]:
-        out: list[str] = []
-        shown: set[str] = set()
+    def legend_entries(self, steps: list[Step] | tuple[Step, ...]) -> list[tuple[str, str]]:
+        """(tool body type, the text of its legend entry) for the types of ``steps``, in order of
+        first use: the type and the tools of it (at most :data:`LEGEND_TOOLS`, then how many more)."""
+        tools: dict[str, dict[str, Thing]] = {}
         for s in steps:
-            t = s.tool
-            if t is None or t.iri in shown:
-                continue
-            shown.add(t.iri)
-            ty = y + 24 * (len(shown) - 1)
-            if len(shown) > self.LEGEND:
-                more = len({x.tool.iri for x in steps if x.tool}) - self.LEGEND
-                out.append(f'<text class="legend-more" x="10" y="{ty + 11}" fill="#444">... and {more} more tools '
-                           "(each box names its tool)</text>")
-                break
-            out.append(f'<g class="legend-tool" data-ref="{escape(t.ref)}"><rect x="10" y="{ty}" width="16" height="14" '
-                       f'fill="{PALETTE[self.tools[t.iri] % len(PALETTE)]}"/><text x="32" y="{ty + 11}">'
-                       f'{escape(t.label or "(no its_id)")} {escape(t.ref)} ({escape(t.cls)})</text></g>')
+            named = tools.setdefault(s.tool_body, {})
+            if s.tool is not None:
+                named.setdefault(s.tool.iri, s.tool)
+        out = []
+        for body, named in tools.items():
+            names = [f"{t.label or '(no its_id)'} {t.ref}" for t in named.values()]
+            more = len(names) - self.LEGEND_TOOLS
+            listed = ", ".join(names[:self.LEGEND_TOOLS]) + (f" and {more} more" if more > 0 else "")
+            text = f"{body}: {listed}" if listed else body
+            out.append((body, text if len(text) <= self.LEGEND_CHARS else text[:self.LEGEND_CHARS - 1] + "\u2026"))
+        return out
+
+    def legend_height(self, steps: list[Step] | tuple[Step, ...]) -> int:
+        return 24 * (min(len({s.tool_body for s in steps}), self.LEGEND + 1) + 2)
+
+    def legend_width(self, steps: list[Step] | tuple[Step, ...]) -> int:
+        """What the legend's longest entry needs (some 6.5 px a character of 11 px sans-serif)."""
+        return max((42 + int(6.5 * len(text)) for _, text in self.legend_entries(steps)), default=0)
+
+    def _legend(self, y: int, steps: list[Step] | tuple[Step, ...]) -> list[str]:
+        out = [f'<text class="legend-title" x="10" y="{y + 11}" font-weight="bold">Tool body type (box colour)</text>']
+        entries = self.legend_entries(steps)
+        for k, (body, text) in enumerate(entries[:self.LEGEND]):
+            ty = y + 24 * (k + 1)
+            out.append(f'<g class="legend-type" data-type="{escape(body)}"><rect x="10" y="{ty}" width="16" height="14" '
+                       f'fill="{self.type_colour(body)}" stroke="#333"/><text x="32" y="{ty + 11}">{escape(text)}'
+                       "</text></g>")
+        if len(entries) > self.LEGEND:
+            out.append(f'<text class="legend-more" x="10" y="{y + 24 * (self.LEGEND + 1) + 11}" fill="#444">... and '
+                       f"{len(entries) - self.LEGEND} more tool body types (each box names its tool)</text>")
         return out
 
     # -- one box per workingstep -------------------------------------------------------------------
@@ -576,8 +806,9 @@ class PlanPicture:
         index = {s.order: i for i, s in enumerate(steps)}
         rows = max(1, -(-len(steps) // self.row))
         width = self.x(min(len(steps), self.row) - 1) + self.BOX_W + 40 if steps else self.LEFT + 40
+        width = max(width, self.legend_width(steps))
         legend_y = self.TOP + rows * self.row_height()
-        height = legend_y + 24 * (min(len(self.tools), self.LEGEND + 1) + 2)
+        height = legend_y + self.legend_height(steps)
         out = self._head(width, height, f"{len(steps)} workingsteps, {len(self.plan.tool_changes())} tool changes, "
                                         f"{len(self.lanes)} setup(s); arcs join roughing and finishing on a feature")
         plans = self._lane_workplans()
@@ -628,22 +859,30 @@ class PlanPicture:
         return "\n".join(out) + "\n"
 
     def box(self, s: Step, x: int, y: int) -> str:
-        """A workingstep's box: its full label (wrapped, never cut), #id and kind, and its operation."""
+        """A workingstep's box: its full label (wrapped), #id and kind, the operation's class, the
+        feature(s), the technology's numbers and the tool, a line each (the technology two); what
+        does not fit ends in an ellipsis, and the tooltip has it all."""
         ink = _ink(self.colour(s))
-        label = _wrap(f"{s.order}. {s.workingstep.label}", 19, 2)
+        label = _wrap(f"{s.order}. {s.workingstep.label}", self.BOX_BOLD, 2)
+        features = ", ".join(f"{f.label or f.cls} {f.ref}" for f in s.features)
+        tool = f"{s.tool.label} {s.tool.ref}" if s.tool else NO_TOOL
         detail = [" ".join(filter(None, [s.workingstep.ref, s.kind]))]
-        if s.operation is not None:
-            detail.append(s.operation.cls)
+        detail += _wrap(s.operation.cls, self.BOX_CHARS, 1) if s.operation else []
+        detail += _wrap(features, self.BOX_CHARS, 1) if features else []
+        detail += _wrap(s.technology.text(), self.BOX_CHARS, 2) if s.technology else []
+        detail += _wrap(tool, self.BOX_CHARS, 1)
         title = (f"{s.order}. {s.workingstep.label} {s.workingstep.ref}; operation "
-                 f"{s.operation.label + ' ' + s.operation.cls if s.operation else '-'}; tool "
-                 f"{s.tool.label if s.tool else '-'} {s.tool.ref if s.tool else ''}; features "
-                 f"{', '.join(f.label + ' ' + f.ref for f in s.features)}")
+                 f"{s.operation.label + ' ' + s.operation.cls + ' ' + s.operation.ref if s.operation else '-'}; "
+                 f"features {', '.join(f'{f.label} {f.ref} ({f.cls})' for f in s.features) or '-'}; technology "
+                 f"{s.technology.ref + ' ' + s.technology.cls + ' ' + s.technology.text(', ') if s.technology else '-'}"
+                 f"; tool {tool} ({s.tool_body})")
         lines = [f'<text x="{x + 6}" y="{y + 14 + 13 * k}" fill="{ink}" font-weight="bold">{escape(t)}</text>'
                  for k, t in enumerate(label)]
-        lines += [f'<text x="{x + 6}" y="{y + 14 + 13 * (len(label) + k)}" fill="{ink}">{escape(_wrap(t, 20, 1)[0])}'
-                  "</text>" for k, t in enumerate(detail)]
+        lines += [f'<text x="{x + 6}" y="{y + 14 + 13 * len(label) + 12 * k}" fill="{ink}" font-size="10">'
+                  f"{escape(t)}</text>" for k, t in enumerate(detail)]
         return (f'<g class="workingstep" data-order="{s.order}" data-ref="{escape(s.workingstep.ref)}" '
-                f'data-tool="{escape(s.tool.ref) if s.tool else ""}"><title>{escape(title)}</title>'
+                f'data-tool="{escape(s.tool.ref) if s.tool else ""}" data-tool-body="{escape(s.tool_body)}">'
+                f'<title>{escape(title)}</title>'
                 f'<rect x="{x}" y="{y}" width="{self.BOX_W}" height="{self.BOX_H}" rx="5" fill="{self.colour(s)}" '
                 f'stroke="#333"/>{"".join(lines)}</g>')
 
@@ -657,10 +896,10 @@ class PlanPicture:
         late = {p.finish for p in self.plan.precedence_violations()}
         pitch_x, pitch_y = self.BLOCK_W + self.GAP, self.BLOCK_H + 34
         rows = -(-len(shown) // self.BLOCK_ROW)
-        width = 20 + self.BLOCK_ROW * pitch_x + 20
-        legend_y = self.TOP + rows * pitch_y + 20
         steps = [s for b in shown for s in b.steps]
-        height = legend_y + 24 * (min(len({s.tool.iri for s in steps if s.tool}), self.LEGEND + 1) + 1)
+        width = max(20 + self.BLOCK_ROW * pitch_x + 20, self.legend_width(steps))
+        legend_y = self.TOP + rows * pitch_y + 20
+        height = legend_y + self.legend_height(steps)
         out = self._head(width, height, f"{len(self.plan.steps)} workingsteps, {len(self.plan.tool_changes())} tool "
                                         f"changes, {len(self.lanes)} setup(s); page {page} of {pages}: steps "
                                         f"{shown[0].first.order}-{shown[-1].last.order}, one box per run of steps "
@@ -705,8 +944,9 @@ class PlanPicture:
             return text if len(text) <= n else text[:n - 1] + "…"
 
         return (f'<g class="{cls}" data-first="{s.order}" data-last="{b.last.order}" data-steps="{len(b.steps)}" '
-                f'data-setup="{escape(setup)}" data-tool="{escape(s.tool.ref) if s.tool else ""}">'
-                f'<title>{escape(setup)}; tool {escape(tool)}; {escape(refs + more)}'
+                f'data-setup="{escape(setup)}" data-tool="{escape(s.tool.ref) if s.tool else ""}" '
+                f'data-tool-body="{escape(s.tool_body)}"><title>{escape(setup)}; tool {escape(tool)} '
+                f'({escape(s.tool_body)}); {escape(refs + more)}'
                 f'{"; a finishing step runs before roughing on its feature" if late else ""}</title>'
                 f'<rect x="{x}" y="{y}" width="{self.BLOCK_W}" height="{self.BLOCK_H}" rx="5" fill="{self.colour(s)}"'
                 f'{stroke}/><text x="{x + 6}" y="{y + 16}" fill="{ink}" font-weight="bold">{escape(steps)}</text>'
