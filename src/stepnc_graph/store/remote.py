@@ -350,7 +350,9 @@ class RemoteStore:
                 if name is None:
                     doubles.update(_DOUBLE.findall(body))
                 self._post_graph(staging[name or graph], body)
-            self._check_doubles(graph, staging[graph], doubles)
+            # on a probe graph: reading the staging graph's doubles back scans it (Virtuoso 7,
+            # 10k instances: 1.2 server CPU-s, 5 s)
+            self._probe_doubles(graph, doubles)
             if before_commit is not None:
                 before_commit(target)
             self._swap(staging)
