@@ -436,7 +436,7 @@ class _Died(Exception):
 def _dying_body(monkeypatch: pytest.MonkeyPatch, then: Any = None) -> None:
     """The load's request body sends its first piece, then ``then()`` runs and the client dies:
     the connection closes with the body cut short."""
-    from stepnc_graph.store import remote
+    from stepnc_graph.store import remote_load as remote
 
     whole = remote._NQuadsBody.__iter__
 

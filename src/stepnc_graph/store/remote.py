@@ -47,7 +47,6 @@ from __future__ import annotations
 import os
 import re
 import time
-import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -55,19 +54,17 @@ from typing import Any
 import pyoxigraph as ox
 
 from stepnc_graph.store.bindings import bind_in_groups
-from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, graph_layout, refuse_strangers
+from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
 from stepnc_graph.store import StoreError
-from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Shadow
+from stepnc_graph.store.contract import Capabilities, Chunk
 from stepnc_graph.store.answers import (
-    _XSD_DOUBLE,
-    _DOUBLE,
     RemoteError,
     _answer,
     _expected,
     _kind,
-    _number,
     system_graph,
 )
+from stepnc_graph.store.remote_load import BATCH_BYTES, _batches, replace_from_client, replace_in_store
 from stepnc_graph.store.endpoint import (
     AUTH_ENV,
     CA_ENV,
@@ -82,8 +79,6 @@ from stepnc_graph.store.endpoint import (
 __all__ = ["AUTH_ENV", "DEFAULT_TIMEOUT", "ENDPOINT_ENV", "Endpoint", "RemoteError", "RemoteStore", "StoreError",
            "open_remote"]
 
-#: bytes of N-Triples per Graph Store Protocol request of a load
-BATCH_BYTES = 8 << 20
 #: a staging graph older than this was left by an interrupted load and is dropped
 STALE_STAGING_SECONDS = 24 * 3600
 #: the name of a staging graph of :meth:`RemoteStore.replace_graph`: its time, then a random id
@@ -96,67 +91,6 @@ _TURTLE = "text/turtle"
 
 def _value(term: Any) -> str:
     return str(term.value if hasattr(term, "value") else term)
-
-
-def _batches(chunks: Iterable[Chunk], size: int) -> Iterator[tuple[str | None, bytes]]:
-    """The chunks' text in UTF-8 batches of about ``size`` bytes (chunks end at triple boundaries),
-    each with its graph: None for the main graph, a companion's name for its chunks (sent alone)."""
-    pending: list[bytes] = []
-    used = 0
-    for chunk in chunks:
-        if isinstance(chunk, Shadow):  # written by the load as quads (see Shadow)
-            continue
-        if isinstance(chunk, Companion):
-            yield chunk.graph, chunk.text.encode("utf-8")
-            continue
-        data = chunk.encode("utf-8")
-        pending.append(data)
-        used += len(data)
-        if used >= size:
-            yield None, b"".join(pending)
-            pending, used = [], 0
-    if pending:
-        yield None, b"".join(pending)
-
-
-class _NQuadsBody:
-    """The graphs of an in-memory store as one N-Quads request body, renamed by ``names`` (staged
-    name -> name in the server), made in pieces while it is sent (chunked transfer: no copy of
-    the whole document in memory). Iterable again from the start: a request sent again (no
-    connection was made the first time) sends the whole document again, never a spent one."""
-
-    #: triples serialized at a time
-    piece = 50_000
-
-    def __init__(self, local: Any, names: dict[str, str], update: str | None = None) -> None:
-        self.local, self.names, self.update = local, names, update
-
-    def __iter__(self) -> Iterator[bytes]:
-        if self.update is not None:
-            yield self.update.encode("utf-8") + b" ;\nINSERT DATA {\n"
-        for staged, name in self.names.items():
-            into = ox.NamedNode(name)
-            if self.update is not None:
-                yield f"GRAPH {into} {{\n".encode()
-            triples: list[ox.Triple] = []
-            for q in self.local.oxigraph.quads_for_pattern(None, None, None, ox.NamedNode(staged)):
-                triples.append(q.triple)
-                if len(triples) >= self.piece:
-                    yield self._text(triples, into)
-                    triples = []
-            if triples:
-                yield self._text(triples, into)
-            if self.update is not None:
-                yield b"}\n"
-        if self.update is not None:
-            yield b"}\n"
-
-    def _text(self, triples: list[ox.Triple], into: ox.NamedNode) -> bytes:
-        text = ox.serialize(triples, format=ox.RdfFormat.N_TRIPLES) or b""
-        if self.update is not None:
-            return text
-        # N-Quads: each N-Triples line with the graph before its final " ."
-        return text.replace(b" .\n", f" {into} .\n".encode())
 
 
 #: servers (by their ``Server`` header) whose GROUP_CONCAT does not keep the order its values
@@ -172,8 +106,6 @@ _UNORDERED_CONCAT = re.compile(r"\s*Virtuoso/", re.IGNORECASE)
 #: Graph Store POST of one graph keeps the triples before an error (found by trying both)
 _DATASET_POST = re.compile(r"\s*Oxigraph/", re.IGNORECASE)
 _NQUADS = "application/n-quads"
-#: the lexical form of each xsd:double literal in N-Triples text (see answers._DOUBLE)
-_DOUBLE_TEXT = re.compile(_DOUBLE.pattern.decode())
 
 
 def _software(header: str) -> str | None:
@@ -197,7 +129,7 @@ class RemoteStore:
         self._http = requests.Session()
         self._http.headers.update(endpoint.headers)
         self._server: str | None = None
-        #: while a load is staged in the client (:meth:`_replace_from_client`): the in-memory
+        #: while a load is staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`): the in-memory
         #: store and the staging names it holds; every read or write naming one of them goes there
         self._local: tuple[Any, dict[str, str]] | None = None
         if endpoint.auth is not None:
@@ -288,7 +220,7 @@ class RemoteStore:
         return True
 
     def _staged(self, graph: str | None = None, sparql: str = "", graphs: Iterable[Any] = ()) -> Any:
-        """The in-memory store of a load staged in the client (:meth:`_replace_from_client`) when a
+        """The in-memory store of a load staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`) when a
         request names one of its staging graphs -- as ``graph``, in ``sparql`` or among a query's
         dataset ``graphs`` -- else None (the request goes to the server)."""
         if self._local is None:
@@ -320,169 +252,18 @@ class RemoteStore:
         write; refuses what :meth:`GraphStore.replace_graph` refuses.
 
         On a server that loads an N-Quads POST in one transaction (:data:`_DATASET_POST`) the load
-        is staged in the client and sent in one request (:meth:`_replace_from_client`); elsewhere
-        it is staged in the store and swapped in by one SPARQL Update (:meth:`_replace_in_store`)."""
+        is staged in the client and sent in one request (:func:`~stepnc_graph.store.remote_load.replace_from_client`); elsewhere
+        it is staged in the store and swapped in by one SPARQL Update (:func:`~stepnc_graph.store.remote_load.replace_in_store`)."""
         refuse_strangers(graph, companions)
         self._drop_stale_staging()
         if _DATASET_POST.match(self.server or ""):
-            self._replace_from_client(graph, chunks, before_commit, companions)
+            replace_from_client(self, graph, chunks, before_commit, companions)
         else:
-            self._replace_in_store(graph, chunks, before_commit, companions)
+            replace_in_store(self, graph, chunks, before_commit, companions)
 
-    def _staging_names(self, graph: str, companions: Sequence[str]) -> tuple[dict[str, str], Callable[[str], str]]:
-        """Fresh staging names for ``graph`` and ``companions``, and the load's ``target``: it
-        stages the vocabulary graph too when the load rewrites it (missing or stale), so a failed
-        load leaves it as it was."""
-        stamp = int(time.time())
-        staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
-
-        def target(name: str) -> str:
-            if name == VOCABULARY_GRAPH and name not in staging:
-                staging[name] = f"{STAGING}{stamp}:{uuid.uuid4().hex}"
-            return staging[name]
-
-        return staging, target
-
-    def _replace_in_store(self, graph: str, chunks: Iterable[Chunk],
-                          before_commit: Callable[[Callable[[str], str]], None] | None,
-                          companions: Sequence[str]) -> None:
-        """Upload into staging graphs of the store, then swap them in with one SPARQL Update request."""
-        staging, target = self._staging_names(graph, companions)
-        doubles: set[bytes] = set()
-        try:
-            for name, body in _batches(chunks, BATCH_BYTES):
-                if name is None:
-                    doubles.update(_DOUBLE.findall(body))
-                self._post_graph(staging[name or graph], body)
-            # on a probe graph: reading the staging graph's doubles back scans it (Virtuoso 7,
-            # 10k instances: 1.2 server CPU-s, 5 s)
-            self._probe_doubles(graph, doubles)
-            if before_commit is not None:
-                before_commit(target)
-            self._swap(staging)
-        except BaseException:
-            self._drop_quietly(staging.values())
-            raise
-        self._drop_quietly(staging.values())
-
-    def _swap(self, staging: dict[str, str]) -> None:
-        """Replace each graph by its staging graph: one request, so one transaction. ADD (a copy)
-        and then dropping the staging graph in a second request is MOVE's meaning; on Oxigraph
-        0.5 it keeps the swap itself to a third of MOVE's time (measured: 700k quads, 21 s
-        against 71 s)."""
-        self.update(" ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; ADD SILENT GRAPH <{tmp}> TO "
-                                 f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
-
-    def _replace_from_client(self, graph: str, chunks: Iterable[Chunk],
-                             before_commit: Callable[[Callable[[str], str]], None] | None,
-                             companions: Sequence[str]) -> None:
-        """Stage the load in an in-memory store of the client, then write it by one request.
-
-        ``before_commit`` reads and writes the staging graphs (the dangling-reference check, the
-        derived layer's queries and updates): every request of this store that names one goes
-        to the in-memory store instead (:meth:`_staged`), so none of that reaches the server.
-        The server is asked only whether it keeps the load's xsd:double values (a probe graph of
-        them, :meth:`_probe_doubles`) and whether the graphs exist. Graphs that do not exist yet
-        are written under their own names by one N-Quads POST (one transaction: a failure, a
-        client killed mid-request or a server killed mid-load leaves nothing); a replacement by one
-        SPARQL Update that drops the graphs and inserts the new ones (:meth:`_commit_from`). One
-        document holds every graph, so a blank node the derived layer shares with the program stays
-        one node (separate documents would split it; the in-memory store names blank nodes anew, so
-        the program's text as the loader wrote it cannot go first).
-
-        Measured (10k instances of a replicated real program, Oxigraph 0.5.13): the load staged in
-        the store cost the server 19.8 CPU-s (the swap 8.7, dropping the staging graphs 5.1), a new
-        program staged in the client 3.4; a replacement 24-31 against 11-16."""
-        from stepnc_graph.store import GraphStore
-
-        staging, target = self._staging_names(graph, companions)
-        doubles: set[str] = set()
-
-        def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
-            for chunk in chunks:
-                if type(chunk) is str:
-                    doubles.update(_DOUBLE_TEXT.findall(chunk))
-                yield chunk
-
-        with GraphStore(None) as local:
-            self._local = (local, staging)
-            try:
-                local._bulk_load(staging[graph], counted(chunks), target)
-                if before_commit is not None:
-                    before_commit(target)
-            finally:
-                self._local = None
-            self._probe_doubles(graph, {d.encode() for d in doubles})
-            self._commit_from(local, staging)
-
-    def _commit_from(self, local: Any, staging: dict[str, str]) -> None:
-        """Write the staged graphs of ``local`` into the server (see :meth:`_replace_from_client`).
-
-        Graphs that do not exist yet: one N-Quads POST under their own names. A replacement: one
-        SPARQL Update request that drops the graphs and inserts the new ones (``INSERT DATA``, a
-        transaction), streamed. The main graph's triple count is read back: a server that
-        answered but did not load is an error, never a load reported done."""
-        existing = [name for name in staging if self.has_graph(name)]
-        names = {tmp: name for name, tmp in staging.items()}
-        main = next(iter(staging))
-        try:
-            if existing:
-                drops = " ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in staging)
-                self._request("POST", self.endpoint.update_url, idempotent=False,
-                              data=_NQuadsBody(local, names, update=drops),
-                              headers={"Content-Type": "application/sparql-update"})
-            else:
-                self._post_dataset(_NQuadsBody(local, names))
-        except BaseException:
-            if not existing:
-                self._drop_quietly(names.values())
-            raise
-        if (got := self.count(main)) != (want := local.count(staging[main])):
-            if not existing:
-                self._drop_quietly(names.values())
-            raise RemoteError(f"{self.endpoint} answered the load of graph {main} ({want} triples) but holds {got} of "
-                              "them: it was not loaded")
-
-    def _post_dataset(self, body: "_NQuadsBody") -> None:
+    def _post_dataset(self, body: Iterable[bytes]) -> None:
         self._request("POST", self.endpoint.store_url, idempotent=False, data=body,
                       headers={"Content-Type": _NQUADS})
-
-    def _probe_doubles(self, graph: str, sent: set[bytes]) -> None:
-        """:meth:`_check_doubles` on a probe graph holding one triple per distinct xsd:double value
-        the load writes (a staging graph, dropped after): the store is not changed when refused."""
-        if not sent:
-            return
-        probe = f"{STAGING}{int(time.time())}:{uuid.uuid4().hex}"
-        subject = ox.NamedNode(probe)
-        lines = "".join(f"{subject} <{probe}#v{i}> \"{text.decode()}\"^^<{_XSD_DOUBLE}> .\n"
-                        for i, text in enumerate(sorted(sent)))
-        try:
-            self._post_graph(probe, lines.encode("utf-8"))
-            self._check_doubles(graph, probe, sent)
-        finally:
-            self._drop_quietly([probe])
-
-    def _check_doubles(self, graph: str, staged: str, sent: set[bytes]) -> None:
-        """RemoteError unless the store gives back every xsd:double value written into ``staged``
-        (distinct values, compared as numbers: a store may write its own lexical form).
-
-        Some stores keep a double but answer it rounded, in every results format (Virtuoso 7: six
-        significant digits, so 0.123456789 reads back as 0.123457); every later query and export
-        would then hand back changed data. The load is refused before anything is swapped in."""
-        if not sent:
-            return
-        rows = self.query(f"SELECT DISTINCT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && "
-                          f"datatype(?o) = <{_XSD_DOUBLE}>) }} }}")
-        back = {_number(row[0].value) for row in rows if isinstance(row[0], ox.Literal)}
-        lost = sorted((text.decode() for text in sent if _number(text.decode()) not in back), key=len)
-        if lost:
-            near = [row[0].value for row in self.query(
-                f"SELECT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && datatype(?o) = "
-                f"<{_XSD_DOUBLE}> && ?o = {ox.Literal(lost[-1], datatype=ox.NamedNode(_XSD_DOUBLE))}) }} }} LIMIT 1")]
-            shown = f"{lost[-1]} reads back as {near[0]}" if near else f"{lost[-1]} does not read back"
-            raise RemoteError(f"{self.endpoint} does not give back the xsd:double values written ({shown}; "
-                              f"{len(lost)} of the {len(sent)} distinct values of <{graph}> differ): every query and "
-                              "export would hand back changed data, so it was not loaded (the store was not changed)")
 
     def _drop_quietly(self, graphs: Iterable[str]) -> None:
         """Drop staging graphs; if the server is gone, a later load drops them once stale."""
