@@ -429,6 +429,32 @@ def _no_blank(quads: Iterator[Any]) -> list[Any]:
     return [q for q in quads if not isinstance(q.subject, ox.BlankNode) and not isinstance(q.object, ox.BlankNode)]
 
 
+def test_a_replacement_too_large_for_one_update_goes_by_staging_graphs(server: OxigraphServer,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Oxigraph's server refuses update bodies over 128 MiB (a 100k-instance program's replacement
+    is ~220 MB: it failed, "SPARQL body payloads are limited"): past a size, one N-Quads POST into
+    staging graphs, one swap, one drop of the staging graphs."""
+    from stepnc_graph.store import remote_load
+
+    monkeypatch.setattr(remote_load, "UPDATE_QUADS", 100)
+    with open_remote(server.url) as store:
+        [first] = sg.load(store, [EXAMPLE])
+        before = {g: store.count(g) for g in store._all_graphs()}
+        writes = _writes(store)
+        sg.load(store, [EXAMPLE], replace=True)
+        assert writes == [("POST", "store"), ("POST", "update"), ("POST", "store"), ("POST", "update"),
+                          ("POST", "update")], writes
+        assert {g: store.count(g) for g in store._all_graphs()} == before
+        shared = ("ASK {{ GRAPH <{g}/derived> {{ ?b ?q ?x FILTER(isBlank(?b)) }} "
+                  "FILTER NOT EXISTS {{ GRAPH <{g}> {{ ?y ?z ?b }} }} }}")
+        assert not store.query(shared.format(g=first.graph))
+        # and a failure of the swap leaves the previous graphs and no staging graph
+        monkeypatch.setattr(remote_load, "_swap", lambda store, staging: (_ for _ in ()).throw(_Died("swap")))
+        with pytest.raises(_Died):
+            sg.load(store, [EXAMPLE], replace=True)
+        assert {g: store.count(g) for g in store._all_graphs()} == before
+
+
 class _Died(Exception):
     pass
 

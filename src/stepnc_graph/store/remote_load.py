@@ -175,28 +175,43 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
         _probe_doubles(store, graph, {d.encode() for d in doubles})
         _commit_from(store, local, staging)
 
+#: quads of a replacement sent as one SPARQL Update at most: Oxigraph's server takes update bodies
+#: of 128 MiB at most (``SPARQL body payloads are limited to 134217728 bytes``), and a replicated
+#: real program takes ~158 bytes a quad there (a 100k-instance one's replacement: ~220 MB). A larger
+#: replacement goes into staging graphs by one N-Quads POST and is swapped in (:func:`_swap`)
+UPDATE_QUADS = 300_000
+
+
 def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> None:
-    """Write the staged graphs of ``local`` into the server (see :meth:`_replace_from_client`).
+    """Write the staged graphs of ``local`` into the server (see :func:`replace_from_client`).
 
     Graphs that do not exist yet: one N-Quads POST under their own names. A replacement: one
     SPARQL Update request that drops the graphs and inserts the new ones (``INSERT DATA``, a
-    transaction), streamed. The main graph's triple count is read back: a server that
+    transaction), streamed; above :data:`UPDATE_QUADS`, one N-Quads POST into fresh staging graphs
+    swapped in by one SPARQL Update. The main graph's triple count is read back: a server that
     answered but did not load is an error, never a load reported done."""
     existing = [name for name in staging if store.has_graph(name)]
     names = {tmp: name for name, tmp in staging.items()}
     main = next(iter(staging))
+    swapped: dict[str, str] = {}
     try:
-        if existing:
+        if existing and sum(local.count(tmp) for tmp in staging.values()) > UPDATE_QUADS:
+            stamp = f"{STAGING}{int(time.time())}:"
+            swapped = {tmp: stamp + uuid.uuid4().hex for tmp in staging.values()}
+            store._post_dataset(_NQuadsBody(local, swapped))
+            _swap(store, {name: swapped[tmp] for name, tmp in staging.items()})
+        elif existing:
             drops = " ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in staging)
             store._request("POST", store.endpoint.update_url, idempotent=False,
-                          data=_NQuadsBody(local, names, update=drops),
-                          headers={"Content-Type": "application/sparql-update"})
+                           data=_NQuadsBody(local, names, update=drops),
+                           headers={"Content-Type": "application/sparql-update"})
         else:
             store._post_dataset(_NQuadsBody(local, names))
     except BaseException:
-        if not existing:
-            store._drop_quietly(names.values())
+        store._drop_quietly(swapped.values() if existing else names.values())
         raise
+    if swapped:
+        store._drop_quietly(swapped.values())
     if (got := store.count(main)) != (want := local.count(staging[main])):
         if not existing:
             store._drop_quietly(names.values())
