@@ -3,8 +3,10 @@ embedded store, in the same run.
 
     pip install -e '.[bench,test]' && python bench/endpoint_bench.py              # 100k instances
     python bench/endpoint_bench.py --size 10000 --repeat 5
+    python bench/endpoint_bench.py --size 10000 --programs replicated --no-queries   # the loads only
 
-One program written by bench/generate.py; the endpoints are Oxigraph's own server (``oxigraph serve``
+Two programs of ``--size`` instances (bench/generate.py): a ``replicated`` real one (copies of the shipped
+two-setup shaft, ``--real`` another) and a ``generated`` geometry-heavy one; the endpoints are Oxigraph's own server (``oxigraph serve``
 from the ``oxigraph`` PyPI package) and Virtuoso (``virtuoso-t``, Debian ``virtuoso-opensource-7-bin``),
 each on loopback ports, persistent in a temporary directory (``--server`` picks one):
 
@@ -38,7 +40,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from generate import write  # noqa: E402
+from generate import replicate, write  # noqa: E402
 from oxigraph_server import OxigraphServer, ServerUnavailable  # noqa: E402
 from startup_bench import cli_argv  # noqa: E402
 from virtuoso_server import VirtuosoServer  # noqa: E402
@@ -94,13 +96,12 @@ def med(runs: list[dict[str, float]], key: str) -> float:
     return statistics.median(r[key] for r in runs)
 
 
-def run(size: int, repeat: int, load_repeat: int, kind: str, no_queries: bool = False) -> None:
+def run(program: Path, label: str, size: int, repeat: int, load_repeat: int, kind: str,
+        no_queries: bool = False) -> None:
     from stepnc_graph.store import GraphStore
 
     work = Path(tempfile.mkdtemp(prefix="stepnc-endpoint-"))
     try:
-        program = work / f"program-{size}.stp"
-        write(size, program)
         server: Server = VirtuosoServer(work / "server") if kind == "virtuoso" else OxigraphServer(work / "server")
         try:
             server.start()
@@ -108,21 +109,29 @@ def run(size: int, repeat: int, load_repeat: int, kind: str, no_queries: bool = 
             raise SystemExit(str(exc)) from None
         try:
             embedded: list[dict[str, float]] = []
-            remote: list[dict[str, float]] = []
+            fresh: list[dict[str, float]] = []  # into a store without the program's graph
+            again: list[dict[str, float]] = []  # the same program again: a replacement
             for i in range(load_repeat):
                 store_dir = work / f"store-{i}"
                 embedded.append(timed_cli(["load", "--store", str(store_dir), str(program)]))
-                remote.append(timed_cli(["load", *options(server), "--replace", str(program)], server))
+                if i:
+                    timed_cli(["unload", *options(server), program.name])
+                fresh.append(timed_cli(["load", *options(server), str(program)], server))
+                again.append(timed_cli(["load", *options(server), "--replace", str(program)], server))
                 if i + 1 < load_repeat:
                     shutil.rmtree(store_dir)
-            print(f"{kind}: {size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of {load_repeat} load(s), "
-                  f"{os.cpu_count()} CPUs, seconds")
-            print(f"{'load':<10} {'wall':>8} {'CLI CPU':>8} {'server CPU':>10} {'inst/s':>8}")
-            for label, runs in (("embedded", embedded), ("endpoint", remote)):
-                print(f"{label:<10} {med(runs, 'wall'):8.1f} {med(runs, 'cpu'):8.1f} {med(runs, 'server_cpu'):10.1f} "
-                      f"{size / med(runs, 'wall'):8,.0f}")
-            print(f"endpoint / embedded wall: {med(remote, 'wall') / med(embedded, 'wall'):.2f}x, CPU (CLI + server): "
-                  f"{(med(remote, 'cpu') + med(remote, 'server_cpu')) / med(embedded, 'cpu'):.2f}x\n")
+            print(f"{kind}, {label} program: {size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of "
+                  f"{load_repeat} load(s) of each kind, {os.cpu_count()} CPUs, load average "
+                  f"{os.getloadavg()[0]:.1f}, seconds")
+            print(f"{'load':<18} {'wall':>8} {'CLI CPU':>8} {'server CPU':>10} {'inst/s':>8} {'wall ratio':>10} "
+                  f"{'CPU ratio':>10}")
+            base_wall, base_cpu = med(embedded, "wall"), med(embedded, "cpu")
+            for name, runs in (("embedded", embedded), ("endpoint, new", fresh), ("endpoint, replace", again)):
+                wall, cpu, server_cpu = med(runs, "wall"), med(runs, "cpu"), med(runs, "server_cpu")
+                print(f"{name:<18} {wall:8.1f} {cpu:8.1f} {server_cpu:10.1f} {size / wall:8,.0f} "
+                      f"{wall / base_wall:9.2f}x {(cpu + server_cpu) / base_cpu:9.2f}x")
+            print("(ratios to the embedded load of the same run; CPU ratio: the CLI's and the server's CPU "
+                  "seconds over the embedded CLI's)\n", flush=True)
             if no_queries:
                 return
             with GraphStore(work / f"store-{load_repeat - 1}", readonly=True) as store:
@@ -156,9 +165,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--load-repeat", type=int, default=1, help="loads of each kind (median)")
     parser.add_argument("--server", choices=["oxigraph", "virtuoso", "both"], default="both")
     parser.add_argument("--no-queries", action="store_true", help="measure the loads only")
+    parser.add_argument("--programs", nargs="+", choices=["replicated", "generated"], default=["replicated", "generated"],
+                        help="a replicated real program, bench/generate.py's generated one, or both (default)")
+    parser.add_argument("--real", type=Path, default=HERE.parent / "examples" / "shaft_two_setups.stp",
+                        help="the real program to replicate (default: the shipped two-setup shaft)")
     args = parser.parse_args(argv)
-    for kind in (["oxigraph", "virtuoso"] if args.server == "both" else [args.server]):
-        run(args.size, args.repeat, args.load_repeat, kind, args.no_queries)
+    data = Path(tempfile.mkdtemp(prefix="stepnc-endpoint-programs-"))
+    try:
+        for label in args.programs:
+            program = data / f"{label}-{args.size}.stp"
+            replicate(args.real, args.size, program) if label == "replicated" else write(args.size, program)
+            for kind in (["oxigraph", "virtuoso"] if args.server == "both" else [args.server]):
+                run(program, label, args.size, args.repeat, args.load_repeat, kind, args.no_queries)
+    finally:
+        shutil.rmtree(data, ignore_errors=True)
 
 
 if __name__ == "__main__":

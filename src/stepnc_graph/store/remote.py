@@ -7,20 +7,21 @@ Jena Fuseki, GraphDB, Virtuoso, Amazon Neptune ...):
 * SPARQL 1.1 Protocol, query (``query_url``): SELECT/ASK results as
   ``application/sparql-results+json`` (read with pyoxigraph, so rows are the same
   objects as the embedded store's), CONSTRUCT as N-Triples;
-* SPARQL 1.1 Protocol, update (``update_url``): ``MOVE``, ``DROP``;
+* SPARQL 1.1 Protocol, update (``update_url``): ``ADD``, ``DROP``, ``INSERT DATA``;
 * SPARQL 1.1 Graph Store HTTP Protocol (``store_url``): ``POST`` N-Triples into a
-  graph, ``GET`` a graph.
+  graph or N-Quads into the store, ``GET`` a graph.
 
-**A load is never half visible.** Its N-Triples go in bounded batches (flat
-memory for any file) into a fresh staging graph; the file's graph and its
-companions are replaced by one SPARQL Update request (``DROP SILENT GRAPH g ;
-MOVE SILENT GRAPH staging TO g``), which a store runs as one transaction. An
-interrupted load leaves the previous graph as it was, and at most a staging
-graph that a later load of this tool drops once it is a day old. Transient
-failures (connection errors, 429, 502, 503, 504) are retried with exponential
-backoff -- but not a request the endpoint may have carried out already: one
-that wrote (an update, a Graph Store POST) and got no answer within the timeout
-is reported, not sent again.
+**A load is never half visible.** On a server that loads an N-Quads POST in one transaction
+(:data:`_DATASET_POST`) the load is staged in the client, in an in-memory store, and written by
+one request: an N-Quads POST of graphs that do not exist yet, or one SPARQL Update that drops and
+inserts a replacement. Elsewhere its N-Triples go in bounded batches into fresh staging graphs of
+the store, and the file's graph and its companions are replaced by one SPARQL Update request
+(``DROP SILENT GRAPH g ; ADD SILENT GRAPH staging TO g``), which a store runs as one transaction.
+An interrupted load leaves the previous graph as it was, and at most a staging graph that a later
+load of this tool drops once it is a day old. Transient
+failures (connection errors, 429, 502, 503, 504) are retried with exponential backoff -- but not
+a request the endpoint may have carried out already: one that wrote (an update, a Graph Store
+POST) and got no answer within the timeout is reported, not sent again.
 
 **Answers are checked.** Each request waits at most ``timeout`` seconds for the
 whole answer (``--timeout``, ``$STEPNC_GRAPH_TIMEOUT``, default 120). A query's
@@ -46,7 +47,6 @@ from __future__ import annotations
 import os
 import re
 import time
-import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -54,19 +54,17 @@ from typing import Any
 import pyoxigraph as ox
 
 from stepnc_graph.store.bindings import bind_in_groups
-from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, graph_layout, refuse_strangers
+from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
 from stepnc_graph.store import StoreError
-from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Shadow
+from stepnc_graph.store.contract import Capabilities, Chunk
 from stepnc_graph.store.answers import (
-    _XSD_DOUBLE,
-    _DOUBLE,
     RemoteError,
     _answer,
     _expected,
     _kind,
-    _number,
     system_graph,
 )
+from stepnc_graph.store.remote_load import BATCH_BYTES, _batches, replace_from_client, replace_in_store
 from stepnc_graph.store.endpoint import (
     AUTH_ENV,
     CA_ENV,
@@ -81,8 +79,6 @@ from stepnc_graph.store.endpoint import (
 __all__ = ["AUTH_ENV", "DEFAULT_TIMEOUT", "ENDPOINT_ENV", "Endpoint", "RemoteError", "RemoteStore", "StoreError",
            "open_remote"]
 
-#: bytes of N-Triples per Graph Store Protocol request of a load
-BATCH_BYTES = 8 << 20
 #: a staging graph older than this was left by an interrupted load and is dropped
 STALE_STAGING_SECONDS = 24 * 3600
 #: the name of a staging graph of :meth:`RemoteStore.replace_graph`: its time, then a random id
@@ -97,31 +93,19 @@ def _value(term: Any) -> str:
     return str(term.value if hasattr(term, "value") else term)
 
 
-def _batches(chunks: Iterable[Chunk], size: int) -> Iterator[tuple[str | None, bytes]]:
-    """The chunks' text in UTF-8 batches of about ``size`` bytes (chunks end at triple boundaries),
-    each with its graph: None for the main graph, a companion's name for its chunks (sent alone)."""
-    pending: list[bytes] = []
-    used = 0
-    for chunk in chunks:
-        if isinstance(chunk, Shadow):  # written by the load as quads (see Shadow)
-            continue
-        if isinstance(chunk, Companion):
-            yield chunk.graph, chunk.text.encode("utf-8")
-            continue
-        data = chunk.encode("utf-8")
-        pending.append(data)
-        used += len(data)
-        if used >= size:
-            yield None, b"".join(pending)
-            pending, used = [], 0
-    if pending:
-        yield None, b"".join(pending)
-
-
 #: servers (by their ``Server`` header) whose GROUP_CONCAT does not keep the order its values
 #: reach it in (found by tests/test_live_stores.py: Virtuoso 7.2 lists an ordered sub-SELECT's
 #: values in an order of its own once the query joins)
 _UNORDERED_CONCAT = re.compile(r"\s*Virtuoso/", re.IGNORECASE)
+
+
+#: servers (by their ``Server`` header) that load an N-Quads document POSTed to the Graph Store
+#: endpoint (no ``graph`` parameter) in one transaction: the whole document or, on any failure (a
+#: parse error, a body cut short by a client that died, the server killed), nothing. Oxigraph's
+#: server does (its ``/store``); Virtuoso 7 answers such a POST 200 and loads nothing, and its
+#: Graph Store POST of one graph keeps the triples before an error (found by trying both)
+_DATASET_POST = re.compile(r"\s*Oxigraph/", re.IGNORECASE)
+_NQUADS = "application/n-quads"
 
 
 def _software(header: str) -> str | None:
@@ -145,6 +129,9 @@ class RemoteStore:
         self._http = requests.Session()
         self._http.headers.update(endpoint.headers)
         self._server: str | None = None
+        #: while a load is staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`): the in-memory
+        #: store and the staging names it holds; every read or write naming one of them goes there
+        self._local: tuple[Any, dict[str, str]] | None = None
         if endpoint.auth is not None:
             self._http.auth = (requests.auth.HTTPDigestAuth(*endpoint.auth) if endpoint.scheme == "digest"
                                else requests.auth.HTTPBasicAuth(*endpoint.auth))
@@ -202,6 +189,9 @@ class RemoteStore:
             except requests.ConnectionError as e:
                 failure = f"{type(e).__name__}: {_safe(url)} does not answer"
                 retry = idempotent or _nothing_sent(e)
+            except requests.exceptions.ChunkedEncodingError:  # the connection broke during the answer
+                failure = f"{_safe(url)} does not answer (the connection broke during its answer)"
+                retry = idempotent
             except requests.RequestException as e:
                 raise RemoteError(self._redact(f"{method} {_safe(url)} failed: {e}")) from None
             else:
@@ -232,8 +222,23 @@ class RemoteStore:
         self._http.auth = requests.auth.HTTPDigestAuth(*self.endpoint.auth)
         return True
 
+    def _staged(self, graph: str | None = None, sparql: str = "", graphs: Iterable[Any] = ()) -> Any:
+        """The in-memory store of a load staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`) when a
+        request names one of its staging graphs -- as ``graph``, in ``sparql`` or among a query's
+        dataset ``graphs`` -- else None (the request goes to the server)."""
+        if self._local is None:
+            return None
+        local, staging = self._local
+        names = set(staging.values())
+        if graph in names or any(_value(g) in names for g in graphs) or any(n in sparql for n in names):
+            return local
+        return None
+
     def update(self, sparql: str) -> None:
         """One SPARQL Update request (one transaction in the store)."""
+        if (local := self._staged(sparql=sparql)) is not None:
+            local.update(sparql)
+            return
         self._request("POST", self.endpoint.update_url, idempotent=False, data=sparql.encode("utf-8"),
                       headers={"Content-Type": "application/sparql-update"})
 
@@ -246,60 +251,22 @@ class RemoteStore:
     def replace_graph(self, graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None = None,
                       companions: Sequence[str] = ()) -> None:
-        """Upload into staging graphs, then swap them in with one SPARQL Update request. Refuses
-        what :meth:`GraphStore.replace_graph` refuses."""
+        """Atomically make ``graph`` (and ``companions``) what ``chunks`` and ``before_commit``
+        write; refuses what :meth:`GraphStore.replace_graph` refuses.
+
+        On a server that loads an N-Quads POST in one transaction (:data:`_DATASET_POST`) the load
+        is staged in the client and sent in one request (:func:`~stepnc_graph.store.remote_load.replace_from_client`); elsewhere
+        it is staged in the store and swapped in by one SPARQL Update (:func:`~stepnc_graph.store.remote_load.replace_in_store`)."""
         refuse_strangers(graph, companions)
         self._drop_stale_staging()
-        stamp = int(time.time())
-        staging = {name: f"{STAGING}{stamp}:{uuid.uuid4().hex}" for name in (graph, *companions)}
+        if _DATASET_POST.match(self.server or ""):
+            replace_from_client(self, graph, chunks, before_commit, companions)
+        else:
+            replace_in_store(self, graph, chunks, before_commit, companions)
 
-        def target(name: str) -> str:
-            # the vocabulary graph, rewritten by a load when it is missing or stale, is staged
-            # and swapped in with the program: a failed load leaves it as it was too
-            if name == VOCABULARY_GRAPH and name not in staging:
-                staging[name] = f"{STAGING}{stamp}:{uuid.uuid4().hex}"
-            return staging[name]
-
-        doubles: set[bytes] = set()
-        try:
-            for name, body in _batches(chunks, BATCH_BYTES):
-                if name is None:
-                    doubles.update(_DOUBLE.findall(body))
-                self._post_graph(staging[name or graph], body)
-            self._check_doubles(graph, staging[graph], doubles)
-            if before_commit is not None:
-                before_commit(target)
-            # the swap: one request, so one transaction. ADD (a copy) and then dropping the
-            # staging graph in a second request is MOVE's meaning; on Oxigraph 0.5 it keeps the
-            # swap itself to a third of MOVE's time (measured: 700k quads, 21 s against 71 s)
-            self.update(" ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)} ; ADD SILENT GRAPH <{tmp}> TO "
-                                    f"{ox.NamedNode(name)}" for name, tmp in staging.items()))
-        except BaseException:
-            self._drop_quietly(staging.values())
-            raise
-        self._drop_quietly(staging.values())
-
-    def _check_doubles(self, graph: str, staged: str, sent: set[bytes]) -> None:
-        """RemoteError unless the store gives back every xsd:double value written into ``staged``
-        (distinct values, compared as numbers: a store may write its own lexical form).
-
-        Some stores keep a double but answer it rounded, in every results format (Virtuoso 7: six
-        significant digits, so 0.123456789 reads back as 0.123457); every later query and export
-        would then hand back changed data. The load is refused before anything is swapped in."""
-        if not sent:
-            return
-        rows = self.query(f"SELECT DISTINCT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && "
-                          f"datatype(?o) = <{_XSD_DOUBLE}>) }} }}")
-        back = {_number(row[0].value) for row in rows if isinstance(row[0], ox.Literal)}
-        lost = sorted((text.decode() for text in sent if _number(text.decode()) not in back), key=len)
-        if lost:
-            near = [row[0].value for row in self.query(
-                f"SELECT ?o WHERE {{ GRAPH <{staged}> {{ ?s ?p ?o FILTER(isLiteral(?o) && datatype(?o) = "
-                f"<{_XSD_DOUBLE}> && ?o = {ox.Literal(lost[-1], datatype=ox.NamedNode(_XSD_DOUBLE))}) }} }} LIMIT 1")]
-            shown = f"{lost[-1]} reads back as {near[0]}" if near else f"{lost[-1]} does not read back"
-            raise RemoteError(f"{self.endpoint} does not give back the xsd:double values written ({shown}; "
-                              f"{len(lost)} of the {len(sent)} distinct values of <{graph}> differ): every query and "
-                              "export would hand back changed data, so it was not loaded (the store was not changed)")
+    def _post_dataset(self, body: Iterable[bytes]) -> None:
+        self._request("POST", self.endpoint.store_url, idempotent=False, data=body,
+                      headers={"Content-Type": _NQUADS})
 
     def _drop_quietly(self, graphs: Iterable[str]) -> None:
         """Drop staging graphs; if the server is gone, a later load drops them once stale."""
@@ -323,10 +290,16 @@ class RemoteStore:
             self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in stale))
 
     def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
+        if (local := self._staged(graph)) is not None:
+            local.add_ntriples(graph, text, bulk)
+            return
         for _, body in _batches([text], BATCH_BYTES):
             self._post_graph(graph, body)
 
     def add_turtle(self, graph: str, text: str) -> None:
+        if (local := self._staged(graph)) is not None:
+            local.add_turtle(graph, text)
+            return
         self._post_graph(graph, text.encode("utf-8"), _TURTLE)
 
     def remove_graph(self, graph: str, companions: Sequence[str] = (), compact: bool = False) -> bool:
@@ -361,6 +334,8 @@ class RemoteStore:
         substitutions: dict[Any, Any] | None = options.get("substitutions")
         default_graph: Sequence[Any] | None = options.get("default_graph")
         named_graphs: Sequence[Any] | None = options.get("named_graphs")
+        if (local := self._staged(sparql=sparql, graphs=[*(default_graph or ()), *(named_graphs or ())])) is not None:
+            return local.query(sparql, **options)
         expected = _expected(sparql, prefixes, substitutions)
         if substitutions:
             bound = bind_in_groups(sparql, {v.value: str(t) for v, t in substitutions.items()})
@@ -413,6 +388,8 @@ class RemoteStore:
         return sorted(g for g in self._all_graphs() if not g.startswith(STAGING))
 
     def has_graph(self, graph: str) -> bool:
+        if (local := self._staged(graph)) is not None:
+            return bool(local.has_graph(graph))
         return bool(self.query(f"ASK {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
 
     def count(self, graph: str | None = None) -> int:
@@ -420,11 +397,16 @@ class RemoteStore:
         default graph may be the union of its graphs, its system graphs included: not counted)."""
         if graph is None:
             return sum(self.count(g) for g in self.all_graphs())
+        if (local := self._staged(graph)) is not None:
+            return int(local.count(graph))
         [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
         return int(row[0].value)
 
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
         """A graph's quads (Graph Store Protocol GET); every graph's for None."""
+        if graph is not None and (local := self._staged(graph)) is not None:
+            yield from local.quads(graph)
+            return
         for name in [graph] if graph else self.all_graphs():
             assert name is not None
             response, _ = self._request("GET", self.endpoint.store_url, params={"graph": name},
@@ -448,6 +430,9 @@ class RemoteStore:
         """The quads matching a pattern (None: any term), as the embedded store's method: one
         SELECT per graph (``graph`` None: every graph :meth:`all_graphs` lists). A blank node
         cannot be asked for: its label means nothing to the store in another request."""
+        if graph is not None and (local := self._staged(_value(graph))) is not None:
+            yield from local.quads_for_pattern(subject, predicate, obj, graph)
+            return
         given = {"s": subject, "p": predicate, "o": obj}
         if any(isinstance(term, ox.BlankNode) for term in given.values()):
             raise StoreError(f"{self.endpoint} is a remote store: a blank node cannot be looked up by its label")
