@@ -542,3 +542,15 @@ def test_a_server_that_rounds_doubles_is_found_by_the_probe_and_left_unchanged(
         with pytest.raises(StoreError, match="does not give back the xsd:double values"):
             sg.load(store, [path])
         assert {g: store.count(g) for g in store._all_graphs()} == before and first.graph in before
+
+
+def test_a_library_query_a_store_answers_wrongly_is_named_with_its_answer() -> None:
+    from stepnc_graph.querying.query import KNOWN_WRONG, known_wrong_answers
+
+    [name] = KNOWN_WRONG
+    with fake_endpoint(empty_store, "Virtuoso/07.20.3229 (Linux)") as (url, _), open_remote(url) as store:
+        [said] = known_wrong_answers(store, name)
+        assert said.startswith("Virtuoso/07.20.3229") and "rows may be missing" in said
+        assert known_wrong_answers(store, "tool-changes") == []
+    with fake_endpoint(empty_store, "Oxigraph/0.5.2") as (url, _), open_remote(url) as store:
+        assert known_wrong_answers(store, name) == []
