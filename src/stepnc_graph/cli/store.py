@@ -85,6 +85,7 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
     """
     from stepnc_graph.loading.loader import refuse_graph_name_clashes
     from stepnc_graph.loading.sources import plan_sources, refuse_replacing_other_files
+    from stepnc_graph.store import directory_bytes
 
     sources = plan_sources(inputs, base_iri)
     with open_writer(store_path, memory, wait, remote) as store:
@@ -92,15 +93,17 @@ def load_cmd(inputs: tuple[str, ...], store_path: Path | None, memory: bool, rem
         if not replace:
             refuse_replacing_other_files(store, sources)
         results, failures = _load_all(store, sources, lenient, fmt, edition)
-        location, size = _location(store), _disk_size(store)
+        location, own_files = _location(store), _has_own_files(store)
+    # measured once the store is closed: closing flushes its last writes to disk (about 1 MB for
+    # the shipped example), so a size taken while it was open fell short of what `du` then shows
+    size = directory_bytes(Path(location)) if own_files else None
     _report_loads(results, failures, fmt, location, size)
 
 
-def _disk_size(store: Store) -> int | None:
-    """Bytes the store takes on disk, or None where it has no files of its own: in memory, or an
-    endpoint, which manages its own storage."""
-    maintenance = store.maintenance()
-    return maintenance.disk_bytes if maintenance is not None and store.capabilities.persistent else None
+def _has_own_files(store: Store) -> bool:
+    """Whether the store keeps files of its own: not in memory, and not an endpoint, which manages
+    its own storage."""
+    return store.capabilities.persistent and store.maintenance() is not None
 
 
 def human_bytes(count: int) -> str:
