@@ -12,7 +12,7 @@ from pathlib import Path
 
 from stepnc_graph.server.serve import ServeError, free_port, oxigraph_binary
 
-__all__ = ["OxigraphServer", "ServerUnavailable", "free_port", "oxigraph_server_binary", "wait_until_answers"]
+__all__ = ["OxigraphServer", "ServerProcess", "ServerUnavailable", "free_port", "oxigraph_server_binary", "wait_until_answers"]
 
 TICKS = os.sysconf("SC_CLK_TCK")
 
@@ -43,13 +43,37 @@ def oxigraph_server_binary() -> str:
         raise ServerUnavailable(str(exc)) from None
 
 
-class OxigraphServer:
+class ServerProcess:
+    """A server the tests and benchmarks start as a child process: its CPU time and how it stops,
+    the same for every store (Oxigraph's server, Virtuoso)."""
+
+    process: subprocess.Popen[bytes] | None = None
+
+    def cpu(self) -> float:
+        """User + system CPU seconds the server has used (Linux /proc)."""
+        assert self.process is not None
+        fields = Path(f"/proc/{self.process.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / TICKS
+
+    def stop(self, sig: int = signal.SIGTERM) -> None:
+        """Send ``sig`` and wait for the server to end; one that outlives a minute is killed."""
+        if self.process is not None and self.process.poll() is None:
+            os.kill(self.process.pid, sig)
+            try:
+                self.process.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                os.kill(self.process.pid, signal.SIGKILL)
+                self.process.wait(timeout=60)
+        self.process = None
+
+
+class OxigraphServer(ServerProcess):
     """``oxigraph serve`` on a free loopback port, persistent in ``location``."""
 
     def __init__(self, location: Path) -> None:
         self.location = location
         self.port = free_port()
-        self.process: subprocess.Popen[bytes] | None = None
+        self.process = None
 
     @property
     def url(self) -> str:
@@ -65,14 +89,3 @@ class OxigraphServer:
             self.stop()
             raise
 
-    def cpu(self) -> float:
-        """User + system CPU seconds the server has used (Linux /proc)."""
-        assert self.process is not None
-        fields = Path(f"/proc/{self.process.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / TICKS
-
-    def stop(self, sig: int = signal.SIGTERM) -> None:
-        if self.process is not None and self.process.poll() is None:
-            os.kill(self.process.pid, sig)
-            self.process.wait(timeout=60)
-        self.process = None

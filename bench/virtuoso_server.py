@@ -8,15 +8,13 @@ Virtuoso serves SPARQL query and update at ``/sparql`` and the Graph Store Proto
 
 from __future__ import annotations
 
-import os
 import shutil
-import signal
 import subprocess
 import time
 import urllib.request
 from pathlib import Path
 
-from oxigraph_server import TICKS, ServerUnavailable, free_port
+from oxigraph_server import ServerProcess, ServerUnavailable, free_port
 
 __all__ = ["VirtuosoServer"]
 
@@ -63,7 +61,7 @@ DefaultQuery = SELECT * WHERE {{ ?s ?p ?o }} LIMIT 10
 """
 
 
-class VirtuosoServer:
+class VirtuosoServer(ServerProcess):
     """``virtuoso-t`` on free loopback ports, its database in ``location``."""
 
     name = "virtuoso"
@@ -72,7 +70,7 @@ class VirtuosoServer:
         self.location = location
         self.port = free_port()
         self.isql_port = free_port()
-        self.process: subprocess.Popen[bytes] | None = None
+        self.process = None
 
     @property
     def url(self) -> str:
@@ -122,19 +120,3 @@ class VirtuosoServer:
             except OSError:
                 time.sleep(0.2)
         raise ServerUnavailable(f"{self.url} did not answer within {seconds:.0f} s")
-
-    def cpu(self) -> float:
-        """User + system CPU seconds the server has used (Linux /proc)."""
-        assert self.process is not None
-        fields = Path(f"/proc/{self.process.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / TICKS
-
-    def stop(self, sig: int = signal.SIGTERM) -> None:
-        if self.process is not None and self.process.poll() is None:
-            os.kill(self.process.pid, sig)
-            try:
-                self.process.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                os.kill(self.process.pid, signal.SIGKILL)
-                self.process.wait(timeout=60)
-        self.process = None
