@@ -185,38 +185,53 @@ UPDATE_QUADS = 300_000
 def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> None:
     """Write the staged graphs of ``local`` into the server (see :func:`replace_from_client`).
 
-    Graphs that do not exist yet: one N-Quads POST under their own names. A replacement: one
-    SPARQL Update request that drops the graphs and inserts the new ones (``INSERT DATA``, a
-    transaction), streamed; above :data:`UPDATE_QUADS`, one N-Quads POST into fresh staging graphs
-    swapped in by one SPARQL Update. The main graph's triple count is read back: a server that
-    answered but did not load is an error, never a load reported done."""
+    Graphs that do not exist yet: one N-Quads POST under their own names. A replacement:
+    :func:`_replace`. The main graph's triple count is read back: a server that answered but did
+    not load is an error, never a load reported done.
+
+    A POST adds to what a graph holds, so two clients creating the same graph at the same moment
+    (both found it missing) would leave both loads in it, mixed. A count other than the one
+    written after a new graph's POST is therefore answered by one replacement, a single
+    transaction: the graph then holds this load alone, as if the two had run one after the
+    other (the last one wins, as for replacements), and never a mix of them."""
     existing = [name for name in staging if store.has_graph(name)]
     names = {tmp: name for name, tmp in staging.items()}
     main = next(iter(staging))
-    swapped: dict[str, str] = {}
-    try:
-        if existing and sum(local.count(tmp) for tmp in staging.values()) > UPDATE_QUADS:
-            stamp = f"{STAGING}{int(time.time())}:"
-            swapped = {tmp: stamp + uuid.uuid4().hex for tmp in staging.values()}
+    want = local.count(staging[main])
+    if existing:
+        _replace(store, local, staging)
+    else:
+        try:
+            store._post_dataset(_NQuadsBody(local, names))
+        except BaseException:
+            store._drop_quietly(names.values())
+            raise
+        if store.count(main) != want:
+            _replace(store, local, staging)
+    if (got := store.count(main)) != want:
+        left = "" if got == 0 else f" (what it holds now is not this load: `unload` it or load the file again)"
+        raise RemoteError(f"{store.endpoint} answered the load of graph {main} ({want} triples) but holds {got} of "
+                          f"them: it was not loaded{left}")
+
+
+def _replace(store: "RemoteStore", local: Any, staging: dict[str, str]) -> None:
+    """Replace the graphs of ``staging`` by those of ``local`` in one transaction: one SPARQL
+    Update request that drops them and inserts the new ones (``INSERT DATA``), streamed; above
+    :data:`UPDATE_QUADS`, one N-Quads POST into fresh staging graphs swapped in by one SPARQL
+    Update (:func:`_swap`)."""
+    if sum(local.count(tmp) for tmp in staging.values()) > UPDATE_QUADS:
+        stamp = f"{STAGING}{int(time.time())}:"
+        swapped = {tmp: stamp + uuid.uuid4().hex for tmp in staging.values()}
+        try:
             store._post_dataset(_NQuadsBody(local, swapped))
             _swap(store, {name: swapped[tmp] for name, tmp in staging.items()})
-        elif existing:
-            drops = " ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in staging)
-            store._request("POST", store.endpoint.update_url, idempotent=False,
-                           data=_NQuadsBody(local, names, update=drops),
-                           headers={"Content-Type": "application/sparql-update"})
-        else:
-            store._post_dataset(_NQuadsBody(local, names))
-    except BaseException:
-        store._drop_quietly(swapped.values() if existing else names.values())
-        raise
-    if swapped:
-        store._drop_quietly(swapped.values())
-    if (got := store.count(main)) != (want := local.count(staging[main])):
-        if not existing:
-            store._drop_quietly(names.values())
-        raise RemoteError(f"{store.endpoint} answered the load of graph {main} ({want} triples) but holds {got} of "
-                          "them: it was not loaded")
+        finally:
+            store._drop_quietly(swapped.values())
+        return
+    drops = " ;\n".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in staging)
+    store._request("POST", store.endpoint.update_url, idempotent=False,
+                   data=_NQuadsBody(local, {tmp: name for name, tmp in staging.items()}, update=drops),
+                   headers={"Content-Type": "application/sparql-update"})
 
 
 class _NQuadsBody:
