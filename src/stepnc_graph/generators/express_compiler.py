@@ -22,12 +22,12 @@ from stepnc_graph.schema.model import (
 )
 from stepnc_graph.schema.view import SchemaModel
 from stepnc_graph.vocabulary.typemap import value_shape
-from stepnc_graph.generators.express_logic import _Conditions
-from stepnc_graph.generators.express_terms import (RDF_NS, Untranslatable, _Agg, _OPS, _Path, _Scalar, _Scope,
-                                                 _Value, _number)
+from stepnc_graph.generators.express_logic import Conditions
+from stepnc_graph.generators.express_terms import (RDF_NS, Untranslatable, Agg, OPS, PathValue, Scalar, Scope,
+                                                 Value, literal_number)
 
 
-class _Compiler:
+class RuleCompiler:
     """Compiles one rule of one entity; raises Untranslatable on the first construct it cannot render."""
 
     def __init__(self, model: SchemaModel, naming: Naming, entity: Entity) -> None:
@@ -35,16 +35,16 @@ class _Compiler:
         self.n = naming
         self.entity = entity
         self.counter = itertools.count(1)
-        self.scope = _Scope()
+        self.scope = Scope()
         self.vars: dict[str, tuple[str, TypeRef]] = {}  # query variable -> (SPARQL var, element type)
         self.self_members: set[str] = set()  # SPARQL vars ranging over an aggregate attribute of SELF
         self.notes: list[str] = []
         #: SET index variables: members pattern -> (the SET, index -> variable)
-        self.set_indexed: dict[str, tuple[_Agg, dict[int, str]]] = {}
+        self.set_indexed: dict[str, tuple[Agg, dict[int, str]]] = {}
         self.set_hits = 0
         self.last_comparison_strict = False
         #: the rule's logical expressions (the values they test come from here)
-        self.logic = _Conditions(self)
+        self.logic = Conditions(self)
 
     def fresh(self, stem: str = "v") -> str:
         return f"?{stem}{next(self.counter)}"
@@ -78,7 +78,7 @@ class _Compiler:
             raise Untranslatable(f"attribute {name} does not denote one attribute of {', '.join(candidates)}")
         return found.pop()
 
-    def step(self, base: _Path, a: Attribute) -> _Value:
+    def step(self, base: PathValue, a: Attribute) -> Value:
         """``base.a``: a longer path for single values, an aggregate for SETs and LISTs."""
         if a.kind == "derived":
             if (a.entity, a.name) == ("geometric_representation_item", "dim"):
@@ -89,27 +89,27 @@ class _Compiler:
         shape = value_shape(self.model, self.n, a.type)
         p = self.iri(a)
         if shape.form in ("literal", "node"):
-            return _Path(base.root, base.steps + (p,), a.type)
+            return PathValue(base.root, base.steps + (p,), a.type)
         agg = self.model.base_type(a.type)
         assert isinstance(agg, AggregateType)
         prefix = base.steps
         root = base.root
         if shape.form == "repeated":
-            def set_members(c: _Compiler, m: str, cell: str) -> str:
+            def set_members(c: RuleCompiler, m: str, cell: str) -> str:
                 return f"{root} {'/'.join(prefix + (p,))} {m} ."
             owner = self.fresh("o")
             head = f"{root} {'/'.join(prefix)} {owner} ." if prefix else ""
             subject = owner if prefix else root
             present = (f"EXISTS {{ {head} {{ {subject} {p} ?any }} UNION "
                        f"{{ {subject} <{P21_NS}emptyAggregate> {p} }} }}")
-            return _Agg(set_members, agg.element, False, present)
+            return Agg(set_members, agg.element, False, present)
 
-        def list_members(c: _Compiler, m: str, cell: str) -> str:
+        def list_members(c: RuleCompiler, m: str, cell: str) -> str:
             return f"{root} {'/'.join(prefix + (p,))}/<{RDF_NS}rest>* {cell} . {cell} <{RDF_NS}first> {m} ."
-        return _Agg(list_members, agg.element, True, f"EXISTS {{ {root} {'/'.join(prefix + (p,))} ?any }}",
-                    _Path(root, prefix + (p,), a.type))
+        return Agg(list_members, agg.element, True, f"EXISTS {{ {root} {'/'.join(prefix + (p,))} ?any }}",
+                    PathValue(root, prefix + (p,), a.type))
 
-    def dimension(self, base: _Path) -> _Scalar:
+    def dimension(self, base: PathValue) -> Scalar:
         """``dim`` of a geometric_representation_item (ISO 10303-42 dimension_of).
 
         In the shipped resource schemas ``dimension_of(item)`` is the
@@ -141,7 +141,7 @@ class _Compiler:
         self.scope.optionals.append(f"OPTIONAL {{ {pairs} {reach} }}" if not base.steps
                                     else f"OPTIONAL {{ {reach} {pairs} }}")
         self.notes.append("dim: the coordinate_space_dimension of every representation using the item")
-        return _Scalar(dim, SimpleType(BaseType.INTEGER))
+        return Scalar(dim, SimpleType(BaseType.INTEGER))
 
     def using_chain(self, top: str, item: str) -> str:
         """A pattern: ``item`` is ``top`` or is used by it through representation items.
@@ -222,11 +222,11 @@ class _Compiler:
         return any(n in self.model.entities and (n in users or any(s in users for s in self.model.all_subtypes(n)))
                    for n in names)
 
-    def materialize(self, v: _Value) -> str:
+    def materialize(self, v: Value) -> str:
         """A SPARQL variable (or term) holding the value; unbound when it is indeterminate."""
-        if isinstance(v, _Scalar):
+        if isinstance(v, Scalar):
             return v.expr
-        if isinstance(v, _Agg):
+        if isinstance(v, Agg):
             raise Untranslatable("an aggregate where a single value is expected")
         if not v.steps:
             return v.root
@@ -239,19 +239,19 @@ class _Compiler:
 
     # -- expressions ------------------------------------------------------------------------
 
-    def value(self, e: Any) -> _Value:
+    def value(self, e: Any) -> Value:
         if isinstance(e, ast.Self):
-            return _Path("$this", (), NamedType(self.entity.name), always=True)
+            return PathValue("$this", (), NamedType(self.entity.name), always=True)
         if isinstance(e, ast.NameRef):
             name = str(e.identifier).lower()
             if name in self.vars:
                 var, t = self.vars[name]
-                return _Path(var, (), t, always=True)
-            return self.step(_Path("$this", (), NamedType(self.entity.name), always=True),
+                return PathValue(var, (), t, always=True)
+            return self.step(PathValue("$this", (), NamedType(self.entity.name), always=True),
                              self.attribute(NamedType(self.entity.name), name))
         if isinstance(e, (ast.AttributeRef, ast.QualifiedAttributeRef)):
             base = self.value(e.source)
-            if not isinstance(base, _Path):
+            if not isinstance(base, PathValue):
                 raise Untranslatable("attribute of a computed value")
             if isinstance(e, ast.AttributeRef):
                 a = self.attribute(base.type, str(e.identifier).lower())
@@ -263,20 +263,20 @@ class _Compiler:
         if isinstance(e, ast.QueryExpr):
             return self.query(e)
         if isinstance(e, (ast.IntegerLiteral, ast.RealLiteral)) or (
-                isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NEG and _number(e) is not None):
-            n = _number(e)
-            return _Scalar(str(n) if isinstance(n, int) else f"{n}e0", None)
+                isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NEG and literal_number(e) is not None):
+            n = literal_number(e)
+            return Scalar(str(n) if isinstance(n, int) else f"{n}e0", None)
         if isinstance(e, ast.StringLiteral):
-            return _Scalar('"' + str(e.value).replace("\\", "\\\\").replace('"', '\\"') + '"', None)
+            return Scalar('"' + str(e.value).replace("\\", "\\\\").replace('"', '\\"') + '"', None)
         if isinstance(e, ast.BinaryExpr) and e.op in (ast.BinaryOp.ADD, ast.BinaryOp.SUBTRACT,
                                                        ast.BinaryOp.MULTIPLY, ast.BinaryOp.REAL_DIVIDE):
             if isinstance(e.left, ast.AggregateLiteral) or isinstance(e.right, ast.AggregateLiteral):
                 raise Untranslatable("an aggregate literal in arithmetic (set intersection with TYPEOF)")
             left, right = self.scalar(e.left), self.scalar(e.right)
-            return _Scalar(f"({left} {_OPS[e.op]} {right})", None)
+            return Scalar(f"({left} {OPS[e.op]} {right})", None)
         if isinstance(e, ast.Call) and self.callee(e) == "sizeof":
             raise Untranslatable("SIZEOF compared with something other than a literal integer")
-        return _Scalar(self.logic.boolean(e), None)
+        return Scalar(self.logic.boolean(e), None)
 
     def scalar(self, e: Any) -> str:
         return self.materialize(self.value(e))
@@ -284,10 +284,10 @@ class _Compiler:
     def callee(self, e: ast.Call) -> str:
         return str(e.callee.identifier).lower() if isinstance(e.callee, ast.NameRef) else ""
 
-    def index(self, e: ast.IndexExpr) -> _Value:
+    def index(self, e: ast.IndexExpr) -> Value:
         base = self.value(e.source)
-        i = _number(e.index)
-        if not isinstance(base, _Agg) or not isinstance(i, int) or i < 1:
+        i = literal_number(e.index)
+        if not isinstance(base, Agg) or not isinstance(i, int) or i < 1:
             raise Untranslatable("an index that is not a literal position in an aggregate attribute")
         if not base.is_list:
             return self.set_member(base, i)
@@ -295,9 +295,9 @@ class _Compiler:
             raise Untranslatable("indexes a computed aggregate")
         # the i-th member is rdf:first of the cell reached by i-1 rdf:rest steps
         steps = base.head.steps + (f"<{RDF_NS}rest>",) * (i - 1) + (f"<{RDF_NS}first>",)
-        return _Path(base.head.root, steps, base.element)
+        return PathValue(base.head.root, steps, base.element)
 
-    def set_member(self, agg: _Agg, i: int) -> _Path:
+    def set_member(self, agg: Agg, i: int) -> PathValue:
         """``s[i]`` of a SET: a variable ranging over its members, distinct per index.
 
         A SET has no order (the Part 21 order is not kept, and EXPRESS fixes
@@ -309,20 +309,20 @@ class _Compiler:
         if i not in slots:
             slots[i] = self.fresh("s")
         self.set_hits += 1
-        return _Path(slots[i], (), agg.element, always=True)
+        return PathValue(slots[i], (), agg.element, always=True)
 
-    def query(self, e: ast.QueryExpr) -> _Agg:
+    def query(self, e: ast.QueryExpr) -> Agg:
         source = self.value(e.aggregate)
-        if not isinstance(source, _Agg):
+        if not isinstance(source, Agg):
             raise Untranslatable("QUERY over a value that is not an aggregate attribute")
         name = str(e.variable).lower()
         predicate = e.predicate
         of_self = self.is_self_aggregate(e.aggregate)
 
-        def members(c: _Compiler, m: str, cell: str) -> str:
+        def members(c: RuleCompiler, m: str, cell: str) -> str:
             inner = source.members(c, m, cell)
             saved_scope, saved_vars = c.scope, dict(c.vars)
-            c.scope = _Scope([inner])
+            c.scope = Scope([inner])
             c.vars[name] = (m, source.element)
             if of_self:
                 c.self_members.add(m)
@@ -331,7 +331,7 @@ class _Compiler:
                 return c.scope.text([cond])
             finally:
                 c.scope, c.vars = saved_scope, saved_vars
-        return _Agg(members, source.element, source.is_list, source.present)
+        return Agg(members, source.element, source.is_list, source.present)
 
     def is_self_aggregate(self, e: Any) -> bool:
         """``SELF.attr`` or ``attr`` (an attribute of SELF itself)."""

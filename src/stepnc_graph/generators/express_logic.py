@@ -11,17 +11,17 @@ from typing import TYPE_CHECKING, Any
 import express_schema.parse as ast
 
 from stepnc_graph.schema.model import EnumerationType, NamedType, SimpleType
-from stepnc_graph.generators.express_terms import (MAX_COUNT, UNKNOWN, Untranslatable, _Agg, _FLIP, _number, _OPS,
-                                                 _Path, _Value, express_text)
+from stepnc_graph.generators.express_terms import (MAX_COUNT, UNKNOWN, Untranslatable, Agg, FLIP, literal_number, OPS,
+                                                 PathValue, Value, express_text)
 
 if TYPE_CHECKING:
-    from stepnc_graph.generators.express_compiler import _Compiler
+    from stepnc_graph.generators.express_compiler import RuleCompiler
 
 
-class _Conditions:
+class Conditions:
     """The logical expressions of the rule that ``c`` compiles (the values they test come from ``c``)."""
 
-    def __init__(self, c: _Compiler) -> None:
+    def __init__(self, c: RuleCompiler) -> None:
         self.c = c
 
     def boolean(self, e: Any) -> str:
@@ -40,7 +40,7 @@ class _Conditions:
             if e.op in (ast.BinaryOp.EQUAL, ast.BinaryOp.NOT_EQUAL, ast.BinaryOp.LESS_THAN, ast.BinaryOp.GREATER_THAN,
                         ast.BinaryOp.LESS_EQUAL, ast.BinaryOp.GREATER_EQUAL):
                 return self.comparison(e)
-            raise Untranslatable(f"operator {_OPS.get(e.op, e.op)} in a logical position")
+            raise Untranslatable(f"operator {OPS.get(e.op, e.op)} in a logical position")
         if isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NOT:
             return f"!{self.boolean(e.operand)}"
         if isinstance(e, ast.Call):
@@ -49,7 +49,7 @@ class _Conditions:
                 return self.exists(e.args[0].value)
             raise Untranslatable(f"calls the function {fn.upper() or express_text(e.callee)}")
         if isinstance(e, ast.Interval):
-            lo, hi = _number(e.left), _number(e.right)
+            lo, hi = literal_number(e.left), literal_number(e.right)
             if lo is None or hi is None:
                 raise Untranslatable("an interval bound is not a literal number")
             x = self.c.scalar(e.center)
@@ -59,7 +59,7 @@ class _Conditions:
         if isinstance(e, ast.LogicalLiteral):
             return {"TRUE": "true", "FALSE": "false"}.get(e.value.name, UNKNOWN)
         v = self.c.value(e) if isinstance(e, (ast.NameRef, ast.AttributeRef, ast.QualifiedAttributeRef)) else None
-        if isinstance(v, _Path) and isinstance(self.c.model.base_type(v.type) if v.type else None, SimpleType):
+        if isinstance(v, PathValue) and isinstance(self.c.model.base_type(v.type) if v.type else None, SimpleType):
             base = self.c.model.base_type(v.type)  # type: ignore[arg-type]
             assert isinstance(base, SimpleType)
             if base.base.value == "BOOLEAN":
@@ -69,9 +69,9 @@ class _Conditions:
 
     def exists(self, e: Any) -> str:
         v = self.c.value(e)
-        if isinstance(v, _Agg):
+        if isinstance(v, Agg):
             return v.present
-        if isinstance(v, _Path) and v.always:
+        if isinstance(v, PathValue) and v.always:
             return "true"
         return f"bound({self.c.materialize(v)})"
 
@@ -84,7 +84,7 @@ class _Conditions:
         if name not in self.c.model.entities:
             raise Untranslatable(f"TYPEOF test for {name}, which is not an entity")
         operand = self.c.value(right.args[0].value)
-        if isinstance(operand, _Agg):
+        if isinstance(operand, Agg):
             # TYPEOF of an aggregate value names no entity: the test is FALSE
             # whenever the aggregate is there, UNKNOWN when it is not
             self.c.notes.append("TYPEOF of an aggregate holds no entity name: the IN test is FALSE when it is set")
@@ -101,10 +101,10 @@ class _Conditions:
     def comparison(self, e: ast.BinaryExpr) -> str:
         for side, other in ((e.left, e.right), (e.right, e.left)):
             if isinstance(side, ast.Call) and self.c.callee(side) == "sizeof":
-                n = _number(other)
+                n = literal_number(other)
                 if not isinstance(n, int):
                     raise Untranslatable("SIZEOF compared with something other than a literal integer")
-                op = e.op if side is e.left else _FLIP.get(e.op, e.op)
+                op = e.op if side is e.left else FLIP.get(e.op, e.op)
                 return self.size_test(side.args[0].value, op, n)
         if self.is_enum_name(e.left) or self.is_enum_name(e.right):
             name, other = (e.left, e.right) if self.is_enum_name(e.left) else (e.right, e.left)
@@ -119,17 +119,17 @@ class _Conditions:
             if self.is_entity(left) or self.is_entity(right):
                 return self.entity_equality(e, left, right)
             a, b = self.c.materialize(left), self.c.materialize(right)
-        symbol = {ast.BinaryOp.EQUAL: "=", ast.BinaryOp.NOT_EQUAL: "!="}.get(e.op, _OPS[e.op])
+        symbol = {ast.BinaryOp.EQUAL: "=", ast.BinaryOp.NOT_EQUAL: "!="}.get(e.op, OPS[e.op])
         return f"({a} {symbol} {b})"
 
-    def is_entity(self, v: _Value) -> bool:
-        t = v.type if isinstance(v, _Path) else None
+    def is_entity(self, v: Value) -> bool:
+        t = v.type if isinstance(v, PathValue) else None
         if not isinstance(t, NamedType):
             return False
         return t.name in self.c.model.entities or any(
             m in self.c.model.entities for m in self.c.model.select_closure(t.name))
 
-    def entity_equality(self, e: ast.BinaryExpr, left: _Value, right: _Value) -> str:
+    def entity_equality(self, e: ast.BinaryExpr, left: Value, right: Value) -> str:
         """``it = SELF`` with ``it`` a member of an aggregate attribute of SELF.
 
         EXPRESS ``=`` on entity instances compares their values recursively
@@ -155,10 +155,10 @@ class _Conditions:
         name = str(e.identifier).lower()
         return name not in self.c.vars and self.c.model.attribute(self.c.entity.name, name) is None
 
-    def enum_operand(self, e: Any, other: _Value) -> str:
+    def enum_operand(self, e: Any, other: Value) -> str:
         """A bare name compared with an enumeration value: that enumeration's item."""
         name = str(e.identifier).lower()
-        if not isinstance(other, _Path) or not isinstance(other.type, NamedType):
+        if not isinstance(other, PathValue) or not isinstance(other.type, NamedType):
             raise Untranslatable(f"{name} compared with a value that is not of an enumeration type")
         decl = self.c.model.get(other.type.name)
         _, base = self.c.model.underlying_chain(other.type.name)
@@ -168,7 +168,7 @@ class _Conditions:
             return f"<{self.c.n.enum_item(decl.name, name)}>"
         raise Untranslatable(f"{name} is neither an attribute nor an item of {other.type.name}")
 
-    def at_least(self, agg: _Agg, k: int, n: int | None = None) -> str:
+    def at_least(self, agg: Agg, k: int, n: int | None = None) -> str:
         """The aggregate has ``k`` or more members (list cells, for a LIST).
 
         Written as an OPTIONAL binding a witness, tested with ``bound``, not as
@@ -191,7 +191,7 @@ class _Conditions:
 
     def size_test(self, agg_expr: Any, op: Any, n: int) -> str:
         agg = self.c.value(agg_expr)
-        if not isinstance(agg, _Agg):
+        if not isinstance(agg, Agg):
             raise Untranslatable("SIZEOF of something that is not an aggregate attribute or QUERY")
 
         def at_least(k: int) -> str:

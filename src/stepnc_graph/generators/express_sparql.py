@@ -35,8 +35,8 @@ import express_schema.parse as ast
 from stepnc_graph.core.naming import Naming
 from stepnc_graph.schema.model import Attribute, Entity, SimpleType
 from stepnc_graph.schema.view import SchemaModel
-from stepnc_graph.generators.express_compiler import _Compiler
-from stepnc_graph.generators.express_terms import Untranslatable, _Agg, _FLIP, _number, express_text
+from stepnc_graph.generators.express_compiler import RuleCompiler
+from stepnc_graph.generators.express_terms import Untranslatable, Agg, FLIP, literal_number, express_text
 
 __all__ = ["CoreCheck", "Translation", "Untranslatable", "defined_type_facets", "express_text", "never_satisfied",
            "translate_rule"]
@@ -80,16 +80,16 @@ def defined_type_facets(expr: Any) -> list[tuple[str, Decimal | int]]:
     rule constrains values that are there), so the facets are exact.
     """
     if isinstance(expr, ast.Interval) and isinstance(expr.center, ast.Self):
-        lo, hi = _number(expr.left), _number(expr.right)
+        lo, hi = literal_number(expr.left), literal_number(expr.right)
         if lo is None or hi is None:
             raise Untranslatable("an interval bound is not a literal number")
         return [("minExclusive" if expr.left_to_center is ast.BinaryOp.LESS_THAN else "minInclusive", lo),
                 ("maxExclusive" if expr.center_to_right is ast.BinaryOp.LESS_THAN else "maxInclusive", hi)]
     if isinstance(expr, ast.BinaryExpr) and expr.op in _FACET_OF:
-        if isinstance(expr.left, ast.Self) and _number(expr.right) is not None:
-            return [(_FACET_OF[expr.op], _number(expr.right))]  # type: ignore[list-item]
-        if isinstance(expr.right, ast.Self) and _number(expr.left) is not None:
-            return [(_FACET_OF[_FLIP[expr.op]], _number(expr.left))]  # type: ignore[list-item]
+        if isinstance(expr.left, ast.Self) and literal_number(expr.right) is not None:
+            return [(_FACET_OF[expr.op], literal_number(expr.right))]  # type: ignore[list-item]
+        if isinstance(expr.right, ast.Self) and literal_number(expr.left) is not None:
+            return [(_FACET_OF[FLIP[expr.op]], literal_number(expr.left))]  # type: ignore[list-item]
     if isinstance(expr, ast.BinaryExpr) and expr.op is ast.BinaryOp.AND:
         return defined_type_facets(expr.left) + defined_type_facets(expr.right)
     raise Untranslatable("only comparisons of SELF with literal numbers become value ranges")
@@ -120,10 +120,10 @@ def _core(model: SchemaModel, entity: Entity, expr: Any) -> CoreCheck | None:
     target = own(ex.args[0].value)
     if target is None:
         return None
-    if own(cmp.left) == target and _number(cmp.right) is not None:
-        return CoreCheck(target, _FACET_OF[cmp.op], _number(cmp.right))  # type: ignore[arg-type]
-    if own(cmp.right) == target and _number(cmp.left) is not None:
-        return CoreCheck(target, _FACET_OF[_FLIP[cmp.op]], _number(cmp.left))  # type: ignore[arg-type]
+    if own(cmp.left) == target and literal_number(cmp.right) is not None:
+        return CoreCheck(target, _FACET_OF[cmp.op], literal_number(cmp.right))  # type: ignore[arg-type]
+    if own(cmp.right) == target and literal_number(cmp.left) is not None:
+        return CoreCheck(target, _FACET_OF[FLIP[cmp.op]], literal_number(cmp.left))  # type: ignore[arg-type]
     return None
 
 
@@ -145,7 +145,7 @@ def _xor(a: str, b: str) -> str:
     return _U if _U in (a, b) else _T if a != b else _F
 
 
-def _aggregate_typeof(c: "_Compiler", e: Any) -> "_Agg | None":
+def _aggregate_typeof(c: "RuleCompiler", e: Any) -> "Agg | None":
     """The aggregate ``x`` of ``'S.E' IN TYPEOF(x)``, when ``e`` is such a test on an aggregate."""
     if not (isinstance(e, ast.BinaryExpr) and e.op is ast.BinaryOp.IN and isinstance(e.left, ast.StringLiteral)
             and isinstance(e.right, ast.Call) and c.callee(e.right) == "typeof"):
@@ -154,10 +154,10 @@ def _aggregate_typeof(c: "_Compiler", e: Any) -> "_Agg | None":
         operand = c.value(e.right.args[0].value)
     except Untranslatable:
         return None
-    return operand if isinstance(operand, _Agg) else None
+    return operand if isinstance(operand, Agg) else None
 
 
-def _possible(c: "_Compiler", e: Any) -> frozenset[str]:
+def _possible(c: "RuleCompiler", e: Any) -> frozenset[str]:
     """The truth values (ISO 10303-11 three-valued logic) ``e`` can take over all instances, as far
     as its form shows: ``'S.E' IN TYPEOF(aggregate)`` is FALSE (TYPEOF of an aggregate names no
     entity), UNKNOWN too when the aggregate may be unset; every other test may be anything."""
@@ -174,7 +174,7 @@ def _possible(c: "_Compiler", e: Any) -> frozenset[str]:
     return frozenset({_T, _F, _U})
 
 
-def _mandatory(c: "_Compiler", e: Any) -> bool:
+def _mandatory(c: "RuleCompiler", e: Any) -> bool:
     """Whether ``e`` names a mandatory attribute of the rule's entity: set in every instance that is
     otherwise valid (a missing one is reported by its own shape, sh:minCount)."""
     if not isinstance(e, ast.NameRef):
@@ -186,7 +186,7 @@ def _mandatory(c: "_Compiler", e: Any) -> bool:
 def never_satisfied(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> str | None:
     """Why no instance of ``entity`` can satisfy the rule ``expr`` (it is FALSE whatever the data),
     or None when some instance may: a defect of the schema, not of any program."""
-    c = _Compiler(model, naming, entity)
+    c = RuleCompiler(model, naming, entity)
     if _possible(c, expr) != frozenset({_F}):
         return None
     return ("as written it is FALSE for every instance: 'S.E' IN TYPEOF(x) of an aggregate x is FALSE "
@@ -202,7 +202,7 @@ def _disjuncts(e: Any) -> list[Any]:
 def _intent(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Translation | None:
     """The evident intent of a rule that ORs ``'S.E' IN TYPEOF(x)`` tests on one aggregate ``x``:
     each member of ``x`` is one of those entities (or a subtype). None for any other form."""
-    c = _Compiler(model, naming, entity)
+    c = RuleCompiler(model, naming, entity)
     tests = _disjuncts(expr)
     aggs = [_aggregate_typeof(c, t) for t in tests]
     if any(a is None for a in aggs):
@@ -240,7 +240,7 @@ def translate_rule(model: SchemaModel, naming: Naming, entity: Entity, expr: Any
     core = _core(model, entity, expr)
     if core is not None:
         return Translation(core=core)
-    c = _Compiler(model, naming, entity)
+    c = RuleCompiler(model, naming, entity)
     condition = c.logic.boolean(expr)
     notes = "; ".join(dict.fromkeys(c.notes)) or None
     if c.set_indexed:
@@ -250,7 +250,7 @@ def translate_rule(model: SchemaModel, naming: Naming, entity: Entity, expr: Any
     return Translation(sparql=query, note=notes)
 
 
-def _all_orders(c: _Compiler, expr: Any, condition: str) -> str:
+def _all_orders(c: RuleCompiler, expr: Any, condition: str) -> str:
     """A rule that indexes a SET, reported when it is FALSE whatever order the SET is read in.
 
     Only a comparison whose two sides both use indexed members is accepted:

@@ -15,7 +15,7 @@ import express_schema.parse as ast
 from stepnc_graph.schema.model import TypeRef
 
 if TYPE_CHECKING:
-    from stepnc_graph.generators.express_compiler import _Compiler
+    from stepnc_graph.generators.express_compiler import RuleCompiler
 
 RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
 UNKNOWN = "?unknown"
@@ -29,7 +29,7 @@ class Untranslatable(Exception):
 
 # -- EXPRESS text of a tree ---------------------------------------------------------------
 
-_OPS = {
+OPS = {
     ast.BinaryOp.ADD: "+", ast.BinaryOp.SUBTRACT: "-", ast.BinaryOp.MULTIPLY: "*",
     ast.BinaryOp.REAL_DIVIDE: "/", ast.BinaryOp.INTEGER_DIVIDE: "DIV", ast.BinaryOp.MODULO: "MOD",
     ast.BinaryOp.POWER: "**", ast.BinaryOp.OR: "OR", ast.BinaryOp.XOR: "XOR", ast.BinaryOp.AND: "AND",
@@ -48,7 +48,7 @@ def express_text(e: Any) -> str:
     tree has the whole rule.
     """
     if isinstance(e, ast.BinaryExpr):
-        return f"({express_text(e.left)} {_OPS[e.op]} {express_text(e.right)})"
+        return f"({express_text(e.left)} {OPS[e.op]} {express_text(e.right)})"
     if isinstance(e, ast.UnaryExpr):
         op = {ast.UnaryOp.NOT: "NOT ", ast.UnaryOp.NEG: "-", ast.UnaryOp.PLUS: "+"}[e.op]
         return f"{op}{express_text(e.operand)}"
@@ -83,17 +83,17 @@ def express_text(e: Any) -> str:
     return f"<{type(e).__name__}>"
 
 
-_FLIP = {ast.BinaryOp.GREATER_THAN: ast.BinaryOp.LESS_THAN, ast.BinaryOp.LESS_THAN: ast.BinaryOp.GREATER_THAN,
+FLIP = {ast.BinaryOp.GREATER_THAN: ast.BinaryOp.LESS_THAN, ast.BinaryOp.LESS_THAN: ast.BinaryOp.GREATER_THAN,
          ast.BinaryOp.GREATER_EQUAL: ast.BinaryOp.LESS_EQUAL, ast.BinaryOp.LESS_EQUAL: ast.BinaryOp.GREATER_EQUAL}
 
 
-def _number(e: Any) -> Decimal | int | None:
+def literal_number(e: Any) -> Decimal | int | None:
     if isinstance(e, ast.IntegerLiteral):
         return int(e.value)
     if isinstance(e, ast.RealLiteral):
         return Decimal(e.value)
     if isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NEG:
-        inner = _number(e.operand)
+        inner = literal_number(e.operand)
         return -inner if inner is not None else None
     return None
 
@@ -102,7 +102,7 @@ def _number(e: Any) -> Decimal | int | None:
 
 
 @dataclass
-class _Scope:
+class Scope:
     """One group graph pattern being built: bindings first, then OPTIONALs, then FILTERs."""
 
     bindings: list[str] = field(default_factory=list)
@@ -114,7 +114,7 @@ class _Scope:
 
 
 @dataclass
-class _Path:
+class PathValue:
     """An instance or simple value reached from an always-bound variable along single-valued steps."""
 
     root: str
@@ -124,22 +124,22 @@ class _Path:
 
 
 @dataclass
-class _Agg:
+class Agg:
     """An aggregate: how to enumerate its members, and whether it is determinate."""
 
-    members: Callable[["_Compiler", str, str], str]  # (compiler, member var, cell var) -> pattern
+    members: Callable[["RuleCompiler", str, str], str]  # (compiler, member var, cell var) -> pattern
     element: TypeRef
     is_list: bool
     present: str  # SPARQL boolean: the aggregate has a value (else SIZEOF etc. are UNKNOWN)
-    head: _Path | None = None  # a LIST attribute: the path to its first cell (for indexing)
+    head: PathValue | None = None  # a LIST attribute: the path to its first cell (for indexing)
 
 
 @dataclass
-class _Scalar:
+class Scalar:
     expr: str
     type: TypeRef | None
 
 
-_Value = _Path | _Agg | _Scalar
+Value = PathValue | Agg | Scalar
 
 

@@ -62,9 +62,9 @@ from stepnc_graph.core.naming import P21_NS, TOOL_IRI, alias_iri, instance_prefi
 from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.loading.common import Source
 from stepnc_graph.store import Store
-from stepnc_graph.loading.jsonld_problems import (_dropped, _locate, _masked, _path_of, _problems, _processor_error,
-                                                  _relabelled, named_graph_of)
-from stepnc_graph.loading.jsonld_read import MAX_DEPTH, MAX_IRI, JsonLdError, _quote, parse_json, pointer, read_bytes
+from stepnc_graph.loading.jsonld_problems import (dropped_error, locate, masked, path_of, invalid_terms, processor_error,
+                                                  relabelled, named_graph_of)
+from stepnc_graph.loading.jsonld_read import MAX_DEPTH, MAX_IRI, JsonLdError, quote, parse_json, pointer, read_bytes
 from stepnc_graph.loading.jsonld_walk import local_contexts
 
 __all__ = ["CHUNK_TRIPLES", "LOAD_PREDICATES", "MAX_DEPTH", "MAX_IRI", "JsonLdError", "JsonLdLoad", "local_contexts",
@@ -105,18 +105,18 @@ def parse_quads(doc: Any, base: str, name: str) -> list[ox.Quad]:
     try:
         quads = list(ox.parse(data, ox.RdfFormat.JSON_LD, base_iri=base, lenient=True))
     except SyntaxError as e:
-        raise _processor_error(doc, str(e.msg), name) from None
-    problems, odd = _problems(quads)
+        raise processor_error(doc, str(e.msg), name) from None
+    problems, odd = invalid_terms(quads)
     if not problems and (b"/." in data or b'".' in data):
         try:
             strict = list(ox.parse(data, ox.RdfFormat.JSON_LD, base_iri=base))
         except SyntaxError as e:
-            raise _processor_error(doc, str(e.msg), name) from None
+            raise processor_error(doc, str(e.msg), name) from None
         if len(strict) != len(quads):
-            problems = _masked(quads, strict)
+            problems = masked(quads, strict)
     if problems:
-        raise _dropped(doc, problems, name)
-    return _relabelled(quads, odd) if odd else quads
+        raise dropped_error(doc, problems, name)
+    return relabelled(quads, odd) if odd else quads
 
 
 # -- the program graph ----------------------------------------------------------------------------
@@ -321,9 +321,9 @@ class JsonLdLoad:
             what = _NUMBERED.get(q.predicate.value)
             if what is not None and not (isinstance(q.object, ox.Literal) and _WHOLE.fullmatch(q.object.value)):
                 value = q.object.value if isinstance(q.object, (ox.Literal, ox.NamedNode, ox.BlankNode)) else ""
-                raise JsonLdError(f"cannot be written back as Part 21: {q.subject} has {what[0]} {_quote(value)}, "
+                raise JsonLdError(f"cannot be written back as Part 21: {q.subject} has {what[0]} {quote(value)}, "
                                   f"which is no {what[1]} (a whole number)", name,
-                                  pointer=pointer(where) if (where := _path_of(_locate(doc, value, exact=True))) else None)
+                                  pointer=pointer(where) if (where := path_of(locate(doc, value, exact=True))) else None)
         try:
             write_graph(self.plans, program, self.graph)
         except WriteError as e:

@@ -16,15 +16,15 @@ from typing import Any
 import pyoxigraph as ox
 
 from stepnc_graph.core.naming import CONTEXT_IRI
-from stepnc_graph.loading.jsonld_read import (JsonLdError, _BAD_PERCENT, _BLANK_LABEL, _NOT_IN_IRI, _Path, _SCHEME,
-                                              _char, _printable, _quote, _show_pointer, pointer, read_bytes)
+from stepnc_graph.loading.jsonld_read import (JsonLdError, BAD_PERCENT, BLANK_LABEL, NOT_IN_IRI, JsonPath, SCHEME,
+                                              char_name, printable, quote, show_pointer, pointer, read_bytes)
 
 
 #: how many invalid values one message names
 SHOWN = 5
 
 
-def _problems(quads: list[ox.Quad]) -> tuple[dict[str, str], set[str]]:
+def invalid_terms(quads: list[ox.Quad]) -> tuple[dict[str, str], set[str]]:
     """The invalid terms of leniently read quads (up to :data:`SHOWN` and one): text -> why; and
     the blank node labels N-Triples cannot write (JSON-LD allows any text after ``_:``)."""
     valid: set[str] = set()
@@ -37,7 +37,7 @@ def _problems(quads: list[ox.Quad]) -> tuple[dict[str, str], set[str]]:
             elif isinstance(term, ox.NamedNode):
                 key = term.value
             elif isinstance(term, ox.BlankNode):
-                if not _BLANK_LABEL.fullmatch(term.value):
+                if not BLANK_LABEL.fullmatch(term.value):
                     odd.add(term.value)
                 continue
             else:
@@ -53,7 +53,7 @@ def _problems(quads: list[ox.Quad]) -> tuple[dict[str, str], set[str]]:
     return problems, odd
 
 
-def _relabelled(quads: list[ox.Quad], odd: set[str]) -> list[ox.Quad]:
+def relabelled(quads: list[ox.Quad], odd: set[str]) -> list[ox.Quad]:
     """``quads`` with each blank node whose label N-Triples cannot write given another (labels
     only tell blank nodes apart within the document: nothing is lost)."""
     labels = {label: ox.BlankNode("u" + hashlib.sha256(label.encode("utf-8", "surrogatepass")).hexdigest()[:32])
@@ -66,7 +66,7 @@ def _relabelled(quads: list[ox.Quad], odd: set[str]) -> list[ox.Quad]:
             or isinstance(q.object, ox.BlankNode) else q for q in quads]
 
 
-def _masked(lenient: list[ox.Quad], strict: list[ox.Quad]) -> dict[str, str]:
+def masked(lenient: list[ox.Quad], strict: list[ox.Quad]) -> dict[str, str]:
     """The IRIs lenient resolution made out of invalid references: in no statement JSON-LD keeps."""
     kept = {t for q in strict for t in (q.subject, q.predicate, q.object, q.graph_name)}
     problems: dict[str, str] = {}
@@ -78,7 +78,7 @@ def _masked(lenient: list[ox.Quad], strict: list[ox.Quad]) -> dict[str, str]:
     return problems or {"(a statement)": "what JSON-LD reads: a reference in the document is no valid IRI reference"}
 
 
-def _processor_error(doc: Any, message: str, name: str) -> JsonLdError:
+def processor_error(doc: Any, message: str, name: str) -> JsonLdError:
     """The processor's complaint, without its positions (they are of the document as re-written
     here) and located in the document when it quotes a value of it."""
     message = re.sub(r"^Parser error at line \d+[^:]*: ", "", message)
@@ -87,26 +87,26 @@ def _processor_error(doc: Any, message: str, name: str) -> JsonLdError:
         return JsonLdError("names a context by its IRI; stepnc-graph never fetches contexts: put the context in "
                            f"the document, or name the shipped one, {CONTEXT_IRI}", name)
     for quoted in re.findall(r"'(.+)'", message, re.DOTALL) + re.findall(r"'(.+?)'", message, re.DOTALL):
-        where = _path_of(_locate(doc, quoted))
+        where = path_of(locate(doc, quoted))
         if where is None:
             continue
-        if "must be an IRI" in message and _iri_problem(quoted):
-            [(_, why)] = _iri_problem(quoted)
-            return JsonLdError(f"{_quote(quoted)} is not {why}", name, pointer=pointer(where))
-        return JsonLdError(f"not JSON-LD that can be read: {_printable(message)}", name, pointer=pointer(where))
-    return JsonLdError(f"not JSON-LD that can be read: {_printable(message)}", name)
+        if "must be an IRI" in message and iri_problem(quoted):
+            [(_, why)] = iri_problem(quoted)
+            return JsonLdError(f"{quote(quoted)} is not {why}", name, pointer=pointer(where))
+        return JsonLdError(f"not JSON-LD that can be read: {printable(message)}", name, pointer=pointer(where))
+    return JsonLdError(f"not JSON-LD that can be read: {printable(message)}", name)
 
 
-def _dropped(doc: Any, problems: dict[str, str], name: str) -> JsonLdError:
+def dropped_error(doc: Any, problems: dict[str, str], name: str) -> JsonLdError:
     """The error for a document JSON-LD would read only by dropping statements: its invalid values."""
-    found = [_as_written(value, _locate(doc, value)) if why is _MASKED else (value, why, _path_of(_locate(doc, value)))
+    found = [_as_written(value, locate(doc, value)) if why is _MASKED else (value, why, path_of(locate(doc, value)))
              for value, why in list(problems.items())[:SHOWN]]
     first = found[0][2] if found else None
     if len(found) == 1:
         value, why, _ = found[0]
-        return JsonLdError(f"{_quote(value)} is not {why}; JSON-LD would drop it, and what it says would be lost",
+        return JsonLdError(f"{quote(value)} is not {why}; JSON-LD would drop it, and what it says would be lost",
                            name, pointer=pointer(first) if first is not None else None)
-    shown = "; ".join(f"{_quote(value)}" + (f" at {_show_pointer(pointer(where))}" if where is not None else "")
+    shown = "; ".join(f"{quote(value)}" + (f" at {show_pointer(pointer(where))}" if where is not None else "")
                       + f" is not {why}" for value, why, where in found)
     return JsonLdError(f"holds {'more than ' if len(problems) > SHOWN else ''}{len(found)} values JSON-LD would "
                        f"drop, and what they say would be lost: {shown}", name,
@@ -116,21 +116,21 @@ def _dropped(doc: Any, problems: dict[str, str], name: str) -> JsonLdError:
 _MASKED = "what the document says: a reference that is no valid IRI reference was resolved to it"
 
 
-def _as_written(iri: str, found: tuple[_Path, str] | None) -> tuple[str, str, _Path | None]:
+def _as_written(iri: str, found: tuple[JsonPath, str] | None) -> tuple[str, str, JsonPath | None]:
     """An IRI that only lenient resolution made (``"a b/../c"`` -> ``.../c``) as the document writes it."""
     if found is None:
         return iri, _MASKED, None
     where, text = found
-    return text, "a valid IRI reference: " + _iri_reason(text, "not one"), where
+    return text, "a valid IRI reference: " + iri_reason(text, "not one"), where
 
 
 def _invalid(term: Any) -> list[tuple[str, str]]:
     """What is wrong with one term of a leniently read quad: (its text, why) for each invalid part."""
     out: list[tuple[str, str]] = []
     if isinstance(term, ox.NamedNode):
-        out += _iri_problem(term.value)
+        out += iri_problem(term.value)
     elif isinstance(term, ox.Literal):
-        out += _iri_problem(term.datatype.value)
+        out += iri_problem(term.datatype.value)
         if term.language is not None:
             try:
                 ox.Literal(term.value, language=term.language)
@@ -139,30 +139,30 @@ def _invalid(term: Any) -> list[tuple[str, str]]:
     return out
 
 
-def _iri_problem(iri: str) -> list[tuple[str, str]]:
+def iri_problem(iri: str) -> list[tuple[str, str]]:
     """``[(iri, why it is not one)]``, or ``[]`` for a valid IRI."""
     try:
         ox.NamedNode(iri)
     except ValueError as e:
-        return [(iri, "an IRI: " + _iri_reason(iri, str(e)))]
+        return [(iri, "an IRI: " + iri_reason(iri, str(e)))]
     return []
 
 
-def _iri_reason(iri: str, error: str) -> str:
+def iri_reason(iri: str, error: str) -> str:
     """Why ``iri`` is not an IRI, in the terms of RFC 3987."""
-    bad = _NOT_IN_IRI.search(iri)
+    bad = NOT_IN_IRI.search(iri)
     if bad:
-        return f"it holds {_char(bad.group())}, which no IRI may hold"
-    if _BAD_PERCENT.search(iri):
+        return f"it holds {char_name(bad.group())}, which no IRI may hold"
+    if BAD_PERCENT.search(iri):
         return "it holds a '%' that is not followed by two hexadecimal digits"
-    if not _SCHEME.match(iri):
+    if not SCHEME.match(iri):
         head = re.match(r"[^/?#]*:", iri)
         if head:
-            return (f"{_quote(head.group()[:-1])} is no scheme (a scheme is a letter, then letters, digits, '+', "
+            return (f"{quote(head.group()[:-1])} is no scheme (a scheme is a letter, then letters, digits, '+', "
                     "'-' or '.')")
         return ("it is relative, with no scheme and no base to resolve it against: a key the context does not "
                 'define, or a reference where "@base" is null')
-    return _printable(error)
+    return printable(error)
 
 
 def _ends_with(iri: str, text: str) -> bool:
@@ -171,21 +171,21 @@ def _ends_with(iri: str, text: str) -> bool:
     return bool(text) and len(iri) > len(text) and iri.endswith(text) and iri[-len(text) - 1] in "/#:?"
 
 
-def _path_of(found: tuple[_Path, str] | None) -> _Path | None:
+def path_of(found: tuple[JsonPath, str] | None) -> JsonPath | None:
     return found[0] if found is not None else None
 
 
-def _locate(doc: Any, value: str, exact: bool = False) -> tuple[_Path, str] | None:
+def locate(doc: Any, value: str, exact: bool = False) -> tuple[JsonPath, str] | None:
     """Where ``value`` (an IRI as the processor made it, a blank node, a language tag) is written
     in the document: a key or string equal to it, else the longest one it ends with (a relative
     reference or a compact IRI, resolved), else a reference with dot segments ending as it does;
     outside contexts first. Its path and the text written there."""
-    best: tuple[tuple[int, int, int], _Path, str] | None = None
+    best: tuple[tuple[int, int, int], JsonPath, str] | None = None
     last = value.rsplit("/", 1)[-1]
-    stack: list[tuple[Any, _Path, bool]] = [(doc, None, False)]
+    stack: list[tuple[Any, JsonPath, bool]] = [(doc, None, False)]
     while stack:
         item, path, in_context = stack.pop()
-        candidates: list[tuple[str, _Path]] = []
+        candidates: list[tuple[str, JsonPath]] = []
         if isinstance(item, dict):
             for key, v in item.items():
                 candidates.append((key, (path, key)))

@@ -32,13 +32,13 @@ KEYWORDS = frozenset({
     "@base", "@container", "@context", "@direction", "@graph", "@id", "@import", "@included", "@index", "@json",
     "@language", "@list", "@nest", "@none", "@prefix", "@propagate", "@protected", "@reverse", "@set", "@type",
     "@value", "@version", "@vocab"})
-_KEYWORD_FORM = re.compile(r"@[A-Za-z]+")
+KEYWORD_FORM = re.compile(r"@[A-Za-z]+")
 #: characters no IRI may hold (RFC 3987: controls, space, and <>"{}|^`\)
-_NOT_IN_IRI = re.compile(r'[\x00-\x20<>"{}|^`\\\x7f-\x9f]')
-_BAD_PERCENT = re.compile(r"%(?![0-9A-Fa-f]{2})")
-_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")
+NOT_IN_IRI = re.compile(r'[\x00-\x20<>"{}|^`\\\x7f-\x9f]')
+BAD_PERCENT = re.compile(r"%(?![0-9A-Fa-f]{2})")
+SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")
 #: blank node labels written as they are (a subset of N-Triples'); others are given a new one
-_BLANK_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_.-]*[A-Za-z0-9_-])?")
+BLANK_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_.-]*[A-Za-z0-9_-])?")
 
 
 class JsonLdError(SourceError):
@@ -49,7 +49,7 @@ class JsonLdError(SourceError):
                  pointer: str | None = None) -> None:
         where = f"{file}:{line}:{column}" if line is not None else file
         if pointer is not None:
-            where += f" at {_show_pointer(pointer)}" if pointer else " at the top level"
+            where += f" at {show_pointer(pointer)}" if pointer else " at the top level"
         super().__init__(f"{where}: {message}")
         self.file, self.line, self.column, self.message, self.pointer = file, line, column, message, pointer
 
@@ -61,25 +61,25 @@ class JsonLdError(SourceError):
 # -- how a message shows the document's text ------------------------------------------------------
 
 
-def _printable(text: str) -> str:
+def printable(text: str) -> str:
     """``text`` with control characters (and lone surrogates) written as JSON escapes ``\\u0000``."""
     return "".join(c if " " <= c < "\x7f" or ("\xa0" <= c and not "\ud800" <= c <= "\udfff") else f"\\u{ord(c):04x}"
                    for c in text)
 
 
-def _quote(text: str, longest: int = 200) -> str:
+def quote(text: str, longest: int = 200) -> str:
     """``text`` quoted for a message; a long one is shortened, saying how long it is."""
-    shown = _printable(text if len(text) <= longest else text[:longest - 40])
+    shown = printable(text if len(text) <= longest else text[:longest - 40])
     return f'"{shown}"' if len(text) <= longest else f'"{shown}..." ({len(text):,} characters)'
 
 
-def _show_pointer(pointer: str) -> str:
+def show_pointer(pointer: str) -> str:
     """A JSON pointer for a message: printable, and a very long one shortened in its middle."""
-    shown = _printable(pointer)
+    shown = printable(pointer)
     return shown if len(shown) <= 200 else shown[:120] + "..." + shown[-60:]
 
 
-def _char(c: str) -> str:
+def char_name(c: str) -> str:
     """How a message names one character."""
     names = {" ": "a space", "\t": "a tab, U+0009", "\n": "a line break, U+000A", "\r": "a carriage return, U+000D",
              "\x00": "a NUL character, U+0000"}
@@ -91,7 +91,7 @@ def _char(c: str) -> str:
 # -- reading the JSON -----------------------------------------------------------------------------
 
 
-class _Refused:
+class Refused:
     """Put by the JSON reader where a value is that JSON-LD could not keep as written; the walk
     (:func:`local_contexts`) reports it with its JSON pointer."""
 
@@ -110,7 +110,7 @@ def _json_integer(text: str) -> Any:
 
 def _json_double(text: str) -> Any:
     """A JSON number JSON-LD reads as an ``xsd:double``: the float, when it is the number written
-    (its shortest form gives the number back); else :class:`_Refused` -- the store would keep
+    (its shortest form gives the number back); else :class:`Refused` -- the store would keep
     infinity, zero or a rounded value instead (Python's own reader would fail on 4,300 digits)."""
     value = float(text)  # no digit limit; a number beyond the range is inf
     if math.isfinite(value) and repr(value) == text:
@@ -123,24 +123,24 @@ def _json_double(text: str) -> Any:
         return value
     why = ("is beyond the range of a double" if not math.isfinite(value) else
            "is closer to zero than a double can be" if value == 0 else "has more significant digits than a double keeps")
-    return _Refused(f"the number {_quote(text, 60)} would become an xsd:double (JSON-LD reads a number with a "
+    return Refused(f"the number {quote(text, 60)} would become an xsd:double (JSON-LD reads a number with a "
                     f"fraction, an exponent or more than {INTEGER_DIGITS} digits as one), and it {why}: write "
                     'it as a string with its datatype, e.g. {"@value": "...", "@type": "xsd:decimal"}')
 
 
-def _json_constant(text: str) -> _Refused:
-    return _Refused(f"{text} is not a JSON number (JSON has no NaN or infinity); write it as "
+def _json_constant(text: str) -> Refused:
+    return Refused(f"{text} is not a JSON number (JSON has no NaN or infinity); write it as "
                     f'{{"@value": "{"INF" if "Infinity" in text else "NaN"}", "@type": "xsd:double"}}')
 
 
 def _json_object(pairs: list[tuple[str, Any]]) -> Any:
-    """A JSON object; :class:`_Refused` when it gives a key twice (JSON would keep only the last)."""
+    """A JSON object; :class:`Refused` when it gives a key twice (JSON would keep only the last)."""
     out = dict(pairs)
     if len(out) == len(pairs):
         return out
     seen: set[str] = set()
     twice = next(k for k, _ in pairs if k in seen or seen.add(k))  # type: ignore[func-returns-value]
-    return _Refused(f"this object gives the key {_quote(twice)} twice; JSON keeps only one of them, so the "
+    return Refused(f"this object gives the key {quote(twice)} twice; JSON keeps only one of them, so the "
                     "other would be lost")
 
 
@@ -156,7 +156,7 @@ def read_bytes(path: Path) -> bytes:
 
 def parse_json(raw: bytes, name: str) -> Any:
     """The JSON value of ``raw``; :class:`JsonLdError` with line and column where it is not JSON.
-    Values JSON-LD could not keep are :class:`_Refused` in it (see :func:`local_contexts`)."""
+    Values JSON-LD could not keep are :class:`Refused` in it (see :func:`local_contexts`)."""
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
@@ -169,10 +169,10 @@ def parse_json(raw: bytes, name: str) -> Any:
     except json.JSONDecodeError as e:
         raise JsonLdError(f"not JSON: {e.msg}", name, e.lineno, e.colno) from None
     except RecursionError:
-        raise JsonLdError(_too_deep(), name) from None
+        raise JsonLdError(too_deep(), name) from None
 
 
-def _too_deep() -> str:
+def too_deep() -> str:
     return (f"arrays and objects are nested deeper than {MAX_DEPTH} levels; a program graph nests about 15 "
             "(refused so that reading it stays bounded)")
 
@@ -180,10 +180,10 @@ def _too_deep() -> str:
 # -- the walk: contexts, keys, values -------------------------------------------------------------
 
 #: where a value is: None (the top), or (where its container is, its key or index)
-_Path = tuple[Any, str | int] | None
+JsonPath = tuple[Any, str | int] | None
 
 
-def pointer(path: _Path) -> str:
+def pointer(path: JsonPath) -> str:
     """The RFC 6901 JSON pointer of ``path``."""
     tokens: list[str] = []
     while path is not None:

@@ -11,19 +11,19 @@ from typing import Any
 import pyoxigraph as ox
 
 from stepnc_graph.core.naming import CONTEXT_IRI
-from stepnc_graph.loading.jsonld_problems import _iri_problem, _iri_reason
-from stepnc_graph.loading.jsonld_read import (JsonLdError, KEYWORDS, MAX_DEPTH, MAX_IRI, _BAD_PERCENT, _KEYWORD_FORM,
-                                              _NOT_IN_IRI, _Path, _Refused, _SCHEME, _quote, _too_deep, pointer)
+from stepnc_graph.loading.jsonld_problems import iri_problem, iri_reason
+from stepnc_graph.loading.jsonld_read import (JsonLdError, KEYWORDS, MAX_DEPTH, MAX_IRI, BAD_PERCENT, KEYWORD_FORM,
+                                              NOT_IN_IRI, JsonPath, Refused, SCHEME, quote, too_deep, pointer)
 
 
-def _fetched(iri: str, path: _Path, name: str) -> JsonLdError:
-    return JsonLdError(f"names the context {_quote(iri)} by its IRI; stepnc-graph never fetches contexts (a "
+def _fetched(iri: str, path: JsonPath, name: str) -> JsonLdError:
+    return JsonLdError(f"names the context {quote(iri)} by its IRI; stepnc-graph never fetches contexts (a "
                        "document could make it connect anywhere, read local files or change what its terms "
                        f"mean): put the context in the document, or name the shipped one, {CONTEXT_IRI}",
                        name, pointer=pointer(path))
 
 
-def _first_string(value: Any, path: _Path) -> tuple[str, _Path] | None:
+def _first_string(value: Any, path: JsonPath) -> tuple[str, JsonPath] | None:
     """The first string inside nested arrays, and where it is."""
     stack = [(value, path)]
     while stack:
@@ -52,7 +52,7 @@ class _Contexts:
         #: so that a context that would be fetched is reported first)
         self.unshipped: JsonLdError | None = None
 
-    def the_shipped(self, path: _Path) -> dict[str, Any]:
+    def the_shipped(self, path: JsonPath) -> dict[str, Any]:
         if not _at_top(path):
             raise JsonLdError(f"names the shipped context, {CONTEXT_IRI}, below the top of the document; name it "
                               "in the document's top-level @context only (it defines every term of a program, and "
@@ -64,7 +64,7 @@ class _Contexts:
             self.shipped = shipped_context().source
         return self.shipped
 
-    def entry(self, value: Any, path: _Path) -> Any:
+    def entry(self, value: Any, path: JsonPath) -> Any:
         """One entry of a ``@context`` (the value itself or a member of its array)."""
         if value is None or isinstance(value, dict):
             return value
@@ -78,30 +78,30 @@ class _Contexts:
                 raise _fetched(inner[0], inner[1], self.name)
             raise JsonLdError("an array inside a @context array: JSON-LD allows objects, null and IRIs there, "
                               "not arrays", self.name, pointer=pointer(path))
-        if isinstance(value, _Refused):
+        if isinstance(value, Refused):
             raise JsonLdError(value.message, self.name, pointer=pointer(path))
         raise JsonLdError(f"a @context is an object, null, the IRI {CONTEXT_IRI} or an array of these, not "
                           f"{json.dumps(value)}", self.name, pointer=pointer(path))
 
-    def context(self, value: Any, path: _Path) -> Any:
+    def context(self, value: Any, path: JsonPath) -> Any:
         """The value of a ``@context`` key, resolved."""
         if isinstance(value, list):
             return [self.entry(v, (path, i)) for i, v in enumerate(value)]
         return self.entry(value, path)
 
-    def imported(self, context: dict[str, Any], path: _Path) -> None:
+    def imported(self, context: dict[str, Any], path: JsonPath) -> None:
         """Inline the shipped context where a context ``@import``\\ s it (its own terms win)."""
         value = context["@import"]
         if value != CONTEXT_IRI:
             if isinstance(value, str):
                 raise _fetched(value, (path, "@import"), self.name)
             raise JsonLdError(f"@import names one context by its IRI, {CONTEXT_IRI} here, not "
-                              f"{_quote(json.dumps(value))}", self.name, pointer=pointer((path, "@import")))
+                              f"{quote(json.dumps(value))}", self.name, pointer=pointer((path, "@import")))
         del context["@import"]
         for k, v in self.the_shipped((path, "@import")).items():
             context.setdefault(k, v)
 
-    def check_scoped(self, resolved: Any, path: _Path) -> None:
+    def check_scoped(self, resolved: Any, path: JsonPath) -> None:
         """A node's (or the document's) context: each term definition in it that has a scoped
         context must be the shipped context's definition of that term.
 
@@ -124,7 +124,7 @@ class _Contexts:
                 if isinstance(definition, dict) and "@context" in definition and definition != shipped.get(term):
                     where = ((path, i) if isinstance(resolved, list) else path, term)
                     self.unshipped = JsonLdError(
-                        f"the term {_quote(term)} has a scoped context (@context) of its own; scoped contexts are "
+                        f"the term {quote(term)} has a scoped context (@context) of its own; scoped contexts are "
                         "taken as the shipped context defines them (for this term: "
                         f"{'none' if term not in shipped else 'a different one'}), since a processor processes "
                         "one again for every node that uses it: define the term without @context, or as the "
@@ -132,7 +132,7 @@ class _Contexts:
                     return
 
 
-def _at_top(path: _Path) -> bool:
+def _at_top(path: JsonPath) -> bool:
     """Whether ``path`` is in the document's top-level ``@context`` (its value, a member of its
     array, or the ``@import`` of one of these)."""
     tokens: list[str | int] = []
@@ -145,7 +145,7 @@ def _at_top(path: _Path) -> bool:
     return tokens[:1] == ["@context"] and (len(tokens) == 1 or (len(tokens) == 2 and isinstance(tokens[1], int)))
 
 
-def _check_text(text: str, path: _Path, name: str) -> None:
+def _check_text(text: str, path: JsonPath, name: str) -> None:
     """A string holding a lone surrogate (``"\\ud800"`` in JSON) is no Unicode text: refused."""
     try:
         text.encode("utf-8")
@@ -154,32 +154,32 @@ def _check_text(text: str, path: _Path, name: str) -> None:
                           "text, so no RDF literal or IRI can hold it", name, pointer=pointer(path)) from None
 
 
-def _check_key(key: str, path: _Path, name: str) -> None:
+def _check_key(key: str, path: JsonPath, name: str) -> None:
     if not key.isascii():
         _check_text(key, (path, key), name)
-    if key[:1] == "@" and key not in KEYWORDS and _KEYWORD_FORM.fullmatch(key):
-        raise JsonLdError(f"the key {_quote(key)} has the form of a keyword but is none; a JSON-LD processor "
+    if key[:1] == "@" and key not in KEYWORDS and KEYWORD_FORM.fullmatch(key):
+        raise JsonLdError(f"the key {quote(key)} has the form of a keyword but is none; a JSON-LD processor "
                           "ignores it, so its value would be lost: give the key an IRI (or a term the context "
                           "defines)", name, pointer=pointer((path, key)))
 
 
-def _check_bases(context: dict[str, Any], path: _Path, name: str) -> None:
+def _check_bases(context: dict[str, Any], path: JsonPath, name: str) -> None:
     """A context's ``@base`` and ``@vocab`` must be IRI references: resolving against an invalid
     one could give valid-looking IRIs where JSON-LD has none."""
     for key in ("@base", "@vocab"):
         value = context.get(key)
-        if isinstance(value, str) and (_NOT_IN_IRI.search(value) or _BAD_PERCENT.search(value) or (
-                _SCHEME.match(value) and _iri_problem(value))):
+        if isinstance(value, str) and (NOT_IN_IRI.search(value) or BAD_PERCENT.search(value) or (
+                SCHEME.match(value) and iri_problem(value))):
             try:
                 ox.NamedNode(value)
                 error = "not one"
             except ValueError as e:
                 error = str(e)
-            raise JsonLdError(f"{_quote(value)} is not an IRI reference: {_iri_reason(value, error)}", name,
+            raise JsonLdError(f"{quote(value)} is not an IRI reference: {iri_reason(value, error)}", name,
                               pointer=pointer((path, key)))
 
 
-def _floating(value: dict[str, Any], path: _Path) -> bool:
+def _floating(value: dict[str, Any], path: JsonPath) -> bool:
     """Whether ``value`` is a value or list object with no node to belong to: the document itself,
     or a member of a top-level array or of a ``@graph`` array."""
     if not ("@value" in value or "@list" in value):
@@ -203,7 +203,7 @@ def local_contexts(doc: Any, name: str) -> Any:
     not the shipped context's (see :meth:`_Contexts.check_scoped`).
     """
     contexts = _Contexts(name)
-    stack: list[tuple[Any, _Path, int, bool]] = [(doc, None, 1, False)]
+    stack: list[tuple[Any, JsonPath, int, bool]] = [(doc, None, 1, False)]
     while stack:
         value, path, depth, in_context = stack.pop()
         kind = type(value)
@@ -211,15 +211,15 @@ def local_contexts(doc: Any, name: str) -> Any:
             if not value.isascii():
                 _check_text(value, path, name)
             continue
-        if kind is _Refused:
+        if kind is Refused:
             raise JsonLdError(value.message, name, pointer=pointer(path))
         if kind is not dict and kind is not list:
             continue
         if depth > MAX_DEPTH:
-            raise JsonLdError(_too_deep(), name, pointer=pointer(path))
+            raise JsonLdError(too_deep(), name, pointer=pointer(path))
         if kind is list:
             for i, item in enumerate(value):
-                if type(item) in (dict, list, _Refused) or (type(item) is str and not item.isascii()):
+                if type(item) in (dict, list, Refused) or (type(item) is str and not item.isascii()):
                     stack.append((item, (path, i), depth + 1, in_context))
             continue
         if value is contexts.shipped:  # put in place by this walk: nothing to check in it

@@ -32,7 +32,7 @@ _HOP_BY_HOP = {"connection", "keep-alive", "transfer-encoding", "te", "trailer",
                "proxy-authenticate", "content-length"}
 
 
-def _host_names(host: str, extra: tuple[str, ...]) -> frozenset[str]:
+def host_names(host: str, extra: tuple[str, ...]) -> frozenset[str]:
     """The names a request's Host may give: loopback names, the address listened on, the names
     asked for, and, listening on every interface, this machine's own names."""
     names = {"localhost", *LOOPBACK, host.lower(), *(e.lower().rstrip(".") for e in extra)}
@@ -41,7 +41,7 @@ def _host_names(host: str, extra: tuple[str, ...]) -> frozenset[str]:
     return frozenset(n for n in names if n)
 
 
-class _Server(http.server.ThreadingHTTPServer):
+class Server(http.server.ThreadingHTTPServer):
     """The forwarding layer's HTTP server: IPv4 or IPv6 as the address asks; a client that goes
     away mid-answer is no error worth a traceback."""
 
@@ -79,7 +79,7 @@ class _Request:
     writes: bool
 
 
-class _Forward(http.server.BaseHTTPRequestHandler):
+class Forward(http.server.BaseHTTPRequestHandler):
     """Forwards a request to the current Oxigraph server; refuses writes and oversized results."""
 
     endpoint: Endpoint

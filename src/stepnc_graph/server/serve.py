@@ -39,7 +39,7 @@ from pathlib import Path
 
 from stepnc_graph.store import GraphStore, StoreError
 from stepnc_graph.store.locks import Locks
-from stepnc_graph.server.guard import LOOPBACK, _Forward, _Server, _host_names, is_loopback
+from stepnc_graph.server.guard import LOOPBACK, Forward, Server, host_names, is_loopback
 
 __all__ = ["DEFAULT_MAX_BYTES", "DEFAULT_MAX_REQUEST_BYTES", "DEFAULT_TIMEOUT", "LOOPBACK", "Endpoint", "ServeError",
            "free_port", "is_loopback", "oxigraph_binary"]
@@ -126,7 +126,7 @@ class Endpoint:
         self.writable, self.timeout, self.max_bytes = writable, timeout, max_bytes
         self.union_default_graph, self.follow, self.poll = union_default_graph, follow, poll
         self.max_request_bytes, self.allow_service = max_request_bytes, allow_service
-        self.allowed_hosts = _host_names(host, allow_hosts)
+        self.allowed_hosts = host_names(host, allow_hosts)
         self.binary = oxigraph_binary()
         self.backend: _Backend | None = None
         self._writer: GraphStore | None = None
@@ -213,9 +213,9 @@ class Endpoint:
             self.backend = self._start_backend(location, None)
         else:
             self.backend = self._read_only_backend()
-        handler = type("Handler", (_Forward,), {"endpoint": self})
+        handler = type("Handler", (Forward,), {"endpoint": self})
         try:
-            self._httpd = _Server((self.host, self.port), handler)
+            self._httpd = Server((self.host, self.port), handler)
         except OSError as e:
             self.stop()
             raise ServeError(f"cannot listen on {self.host}:{self.port}: {e.strerror or e}") from None

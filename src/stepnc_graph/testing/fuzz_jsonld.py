@@ -20,7 +20,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from stepnc_graph.testing.fuzz_part21 import Outcome, _basic
+from stepnc_graph.testing.fuzz_part21 import Outcome, basic_damage
 
 
 JSONLD_KINDS = ["jsonld-context", "jsonld-number", "jsonld-iri", "jsonld-nesting", "jsonld-list", "jsonld-bytes"]
@@ -81,7 +81,7 @@ def mutate_jsonld(rng: random.Random, doc: bytes, url: str, kinds: list[str] | N
     ``url`` is the loopback listener's, placed where a processor would fetch a context."""
     kind = rng.choice(kinds or JSONLD_KINDS)
     if kind == "jsonld-bytes":
-        return kind, _basic(rng, rng.choice(["truncate", "flip", "delete", "repeat", "flips"]), doc, [])
+        return kind, basic_damage(rng, rng.choice(["truncate", "flip", "delete", "repeat", "flips"]), doc, [])
     tree = json.loads(doc)
     raw: dict[str, str] = {}  # placeholder string -> JSON text put there after dumping
     if kind == "jsonld-context":

@@ -54,10 +54,10 @@ def mutate(rng: random.Random, data: bytes, others: list[bytes], kinds: list[str
     if kind == "huge-number":
         out = _huge_numbers(rng, data)
         return kind, re.sub(rb"\r?\n", b" ", out) if rng.random() < 0.3 else out
-    return kind, _basic(rng, kind, data, others)
+    return kind, basic_damage(rng, kind, data, others)
 
 
-def _basic(rng: random.Random, kind: str, data: bytes, others: list[bytes]) -> bytes:
+def basic_damage(rng: random.Random, kind: str, data: bytes, others: list[bytes]) -> bytes:
     n = len(data)
     at = rng.randrange(n) if n else 0
     if kind == "truncate":
@@ -91,7 +91,7 @@ def _damage(rng: random.Random, data: bytes, others: list[bytes]) -> bytes:
         for _ in range(rng.randint(1, 3)):
             data = _break_instance(rng, data)
         return data
-    return _basic(rng, rng.choice(BASIC), data, others)
+    return basic_damage(rng, rng.choice(BASIC), data, others)
 
 
 def _break_instance(rng: random.Random, data: bytes) -> bytes:
