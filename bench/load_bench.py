@@ -218,7 +218,7 @@ def child_profile(path: str, store_dir: str, derived: bool, nquads: str | None) 
     from stepnc_graph.mapping.mapper import InstanceMapper
     from stepnc_graph.part21.reader import Part21Reader
     from stepnc_graph.schema.catalog import iso14649
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.transaction import Transaction
 
     iso14649()
     iso14649_rules()
@@ -230,7 +230,7 @@ def child_profile(path: str, store_dir: str, derived: bool, nquads: str | None) 
     loader._Load.dangling = clock.wrap(loader._Load.dangling, "diagnostics")  # type: ignore[method-assign]
     loader._Load.diagnostics = clock.wrap(loader._Load.diagnostics, "diagnostics")  # type: ignore[method-assign]
     loader.ensure_vocabulary = clock.wrap(loader.ensure_vocabulary, "vocabulary")
-    GraphStore._commit = clock.wrap(GraphStore._commit, "commit")  # type: ignore[method-assign]
+    Transaction.commit = clock.wrap(Transaction.commit, "commit")  # type: ignore[method-assign]
     if derived:
         loader.derive = clock.wrap(loader.derive, "derive")
     else:

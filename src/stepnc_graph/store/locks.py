@@ -5,10 +5,15 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import json
 import os
 import sys
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+
+from stepnc_graph.store.errors import StoreBusy
 
 
 
@@ -68,3 +73,39 @@ def command_line() -> str:
 
     name = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else "python"
     return " ".join([name, *sys.argv[1:]])[:200]
+
+
+def writer_of(store: Path) -> Writer:
+    """Who holds the writer's lock of the store in ``store``, as it wrote it (empty when unreadable)."""
+    try:
+        info = json.loads((store / "write.lock").read_text() or "{}")
+    except (OSError, ValueError):
+        info = {}
+    return Writer(info.get("pid"), info.get("command", ""), info.get("since", ""))
+
+
+def lock_writer(store: Path, wait: bool | float, on_wait: Callable[[Writer], None] | None) -> int:
+    """The writer's lock of the store in ``store`` (its descriptor, with this process named in
+    ``write.lock``), or :class:`StoreBusy` when another process holds it (after ``wait``: True,
+    or seconds; ``on_wait(writer)`` is called once before waiting)."""
+    lock = store / "write.lock"
+    fd = Locks.try_lock(lock, shared=False)
+    if fd is None:
+        if not wait:
+            raise StoreBusy(store, writer_of(store))
+        if on_wait is not None:
+            on_wait(writer_of(store))
+        deadline = None if wait is True else time.monotonic() + float(wait)
+        while fd is None:
+            if deadline is not None and time.monotonic() > deadline:
+                raise StoreBusy(store, writer_of(store))
+            time.sleep(LOCK_POLL)
+            fd = Locks.try_lock(lock, shared=False)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps({"pid": os.getpid(), "command": command_line(),
+                                  "since": time.strftime("%Y-%m-%d %H:%M:%S")}).encode(), 0)
+    except BaseException:
+        Locks.release(fd)
+        raise
+    return fd

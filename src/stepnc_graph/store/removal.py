@@ -21,7 +21,7 @@ from stepnc_graph.store.batches import count_in, delete_rounds, extend_in_calls
 from stepnc_graph.store.kept import KeptText
 
 if TYPE_CHECKING:
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.embedded import GraphStore
 
 
 class Removal:
@@ -91,7 +91,7 @@ class Removal:
                 if k:
                     self.flush()
                 list(pool.map(self._delete_predicate, part))
-        self.store._deletes_logged = True
+        self.store._tx.deletes_logged = True
         for node in nodes:
             self.store._db.remove_graph(node)  # the name, and any quad added since the count
 
@@ -139,7 +139,7 @@ class Removal:
         shutil.rmtree(self.store._file("work"))
         rebuild.rename(self.store._file("work"))
         self.store._store = ox.Store(str(self.store._file("work")))
-        self.store._deleted_after = 0  # a fresh database: nothing deleted in it
+        self.store._tx.deleted_after = 0  # a fresh database: nothing deleted in it
 
     def _copy_graph(self, fresh: ox.Store, graph: ox.NamedNode | ox.BlankNode | ox.DefaultGraph) -> Iterator[int]:
         """Copy ``graph`` into ``fresh``, yielding how many quads each bulk call copied. A

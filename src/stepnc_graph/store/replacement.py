@@ -4,7 +4,7 @@ compared with the old version as N-Triples lines, and only what changed deleted 
 Deleting costs Oxigraph more than loading does (see docs/loading.md), so a replacement that
 deleted the old version and loaded the new one cost two to three loads beside other programs;
 this one costs 0.7-1.5. :class:`Replacement` runs one, inside the store's write
-(:meth:`stepnc_graph.store.GraphStore._write`); its pieces (the tee, the blank-node match, the
+(:meth:`stepnc_graph.store.transaction.Transaction.write`); its pieces (the tee, the blank-node match, the
 deleter thread, the part-by-part comparison) are in :mod:`.difference`.
 """
 
@@ -42,7 +42,7 @@ from stepnc_graph.store.removal import Removal
 from stepnc_graph.store.kept import KeptText, read_without_blank_nodes
 
 if TYPE_CHECKING:
-    from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.embedded import GraphStore
 
 
 class Replacement:
@@ -185,7 +185,7 @@ class Replacement:
             for path in tee.paths.values():
                 path.unlink(missing_ok=True)
         else:
-            self.store._kept_written.update(tee.keep())
+            self.store._tx.kept_written.update(tee.keep())
         to_dump = names if teed is None else []  # and the vocabulary, if the load rewrote it
         if staged.contains_named_graph(vocabulary) and count_in(staged, VOCABULARY_GRAPH) != seeded:
             to_dump = [*to_dump, VOCABULARY_GRAPH]
@@ -293,7 +293,7 @@ class Replacement:
         finally:
             deleter.close()
         self._insert(inserts)
-        self.store._deletes_logged = True
+        self.store._tx.deletes_logged = True
         self.store.last_difference.update({"deleted": deleted, "inserted": inserted, "inserted with a blank node": blank,
                                      "blank nodes kept": match.kept})
         return lines

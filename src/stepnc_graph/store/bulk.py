@@ -1,0 +1,118 @@
+"""Threaded bulk loading: a load's chunks streamed into the embedded store by one bulk loader per core.
+
+One ``bulk_load`` call ingests a named graph on disk with one core, and two concurrent calls on
+halves of the data nearly double that (the figures are in docs/loading.md, "The store's tuning,
+measured"). So the producer (the caller's thread: parse and map) fills a bounded hand-off and
+:data:`~stepnc_graph.store.tuning.LOAD_THREADS` threads each run a streaming ``bulk_load`` over it
+(pyoxigraph releases the GIL while loading; an in-memory store is fed differently, see
+:data:`~stepnc_graph.store.tuning.MEMORY_BATCH_CHARS`). Chunks end at instance boundaries and
+blank-node labels are unique per load, so every thread's document is self-contained.
+"""
+
+from __future__ import annotations
+
+import io
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING
+
+import pyoxigraph as ox
+
+from stepnc_graph.store import tuning
+from stepnc_graph.store.batches import ChunkStream
+from stepnc_graph.store.contract import Chunk, Shadow
+from stepnc_graph.store.handoff import Handoff
+
+if TYPE_CHECKING:
+    from stepnc_graph.store.embedded import GraphStore
+
+#: what the producer hands a worker: the main graph's text, or a companion's (its graph, its text)
+Item = bytes | tuple[str, bytes]
+
+
+class BulkLoad:
+    """One bulk load of ``chunks`` into ``graph`` of ``store``; a :class:`Companion` chunk goes on
+    its own into ``target(its graph)``. The first error of any thread aborts the hand-off, which
+    stops the producer and every worker (see :mod:`stepnc_graph.store.handoff`).
+
+    No attribute or local name holds the database (workers read ``store._db`` at each call): a
+    failure's traceback keeps these frames alive, and the rollback must be able to close it."""
+
+    def __init__(self, store: GraphStore, graph: str, target: Callable[[str], str], in_memory: bool) -> None:
+        self.store, self.main, self.target, self.in_memory = store, ox.NamedNode(graph), target, in_memory
+        self.threads_n = 1 if in_memory else tuning.LOAD_THREADS  # see tuning.MEMORY_BATCH_CHARS
+        self.work: Handoff[Item] = Handoff(2 * self.threads_n)
+        self.errors: list[BaseException] = []
+
+    def run(self, graph: str, chunks: Iterable[Chunk]) -> None:
+        """Produce the chunks (encoded once: also for the store's tee) while the workers load them."""
+        threads = [threading.Thread(target=self._worker, daemon=True) for _ in range(self.threads_n)]
+        for t in threads:
+            t.start()
+        try:
+            self._produce(graph, chunks)
+        except BaseException:
+            self.work.abort()
+            raise
+        finally:
+            self.work.close()
+            for t in threads:
+                t.join()
+        if self.errors:
+            raise self.errors[0]
+
+    def _produce(self, graph: str, chunks: Iterable[Chunk]) -> None:
+        tee = self.store._tee
+        for chunk in chunks:
+            into, data = (graph, chunk.encode("utf-8")) if type(chunk) is str else (
+                chunk.graph, chunk.text.encode("utf-8"))  # type: ignore[union-attr]
+            if tee is not None:
+                tee.write_bytes(into, data)
+            if isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
+                continue
+            if not self.work.put(data if type(chunk) is str else (into, data)):
+                return  # a worker failed
+
+    def _worker(self) -> None:
+        try:
+            ended = False
+            while not ended:
+                large: list[Item] = []
+                ended = self._load_batch(large)
+                for item in large:
+                    into, data = ((ox.NamedNode(self.target(item[0])), item[1]) if isinstance(item, tuple)
+                                  else (self.main, item))
+                    self.store._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=into, lenient=True)
+                if self.work.aborted:  # another thread failed: what this one loaded is rolled back
+                    return
+        except BaseException as exc:  # noqa: BLE001 -- raised by the producer thread
+            self.errors.append(exc)
+            self.work.abort()
+
+    def _load_batch(self, large: list[Item]) -> bool:
+        """One bulk_load call of the main graph's chunks; True when the hand-off has ended."""
+        ended: list[bool] = []
+        if self.in_memory:
+            data = b"".join(self._pull(tuning.MEMORY_BATCH_CHARS, large, ended))
+            if data:
+                self.store._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=self.main, lenient=True)
+        else:
+            stream = io.BufferedReader(ChunkStream(self._pull(tuning.BATCH_CHARS, large, ended)), 1 << 20)
+            self.store._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=self.main, lenient=True)
+        return bool(ended)
+
+    def _pull(self, budget: int, large: list[Item], ended: list[bool]) -> Iterator[bytes]:
+        """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth; a chunk
+        too large for the streaming reader, or a companion's, ends the call and goes to ``large``;
+        the hand-off's end is noted in ``ended``."""
+        used = 0
+        while used < budget:
+            item = self.work.get()
+            if item is None:
+                ended.append(True)
+                return
+            if type(item) is not bytes or len(item) > tuning.DIRECT_CHARS:
+                large.append(item)
+                return
+            used += len(item)
+            yield item
