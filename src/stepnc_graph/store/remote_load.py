@@ -209,7 +209,7 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> N
         if store.count(main) != want:
             _replace(store, local, staging)
     if (got := store.count(main)) != want:
-        left = "" if got == 0 else f" (what it holds now is not this load: `unload` it or load the file again)"
+        left = "" if got == 0 else " (what it holds now is not this load: `unload` it or load the file again)"
         raise RemoteError(f"{store.endpoint} answered the load of graph {main} ({want} triples) but holds {got} of "
                           f"them: it was not loaded{left}")
 
