@@ -8,10 +8,11 @@ setup and one tool, in pages (:class:`PlanPicture`). PNG needs the ``png`` extra
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from html import escape
 from typing import TYPE_CHECKING
 
-from stepnc_graph.workplan.model import NO_TOOL, NO_TOOL_BODY, PlanError, Step, Thing
+from stepnc_graph.workplan.model import NO_TOOL, NO_TOOL_BODY, PlanError, Step, Thing, ToolChange
 
 if TYPE_CHECKING:
     from stepnc_graph.workplan.analyses import Plan
@@ -111,6 +112,16 @@ class PlanPicture:
         #: boxes a row: rows as even as they can be (13 steps: one row, 20: two of 10)
         self.row = -(-n // -(-n // self.ROW)) if n else 1
 
+    @cached_property
+    def blocks(self) -> list[Block]:
+        """The plan's :func:`blocks` (counted for the pages, drawn on one)."""
+        return blocks(self.plan.steps)
+
+    @cached_property
+    def tool_changes(self) -> list[ToolChange]:
+        """The plan's tool changes (counted in the heading, drawn)."""
+        return self.plan.tool_changes()
+
     def _lane_workplans(self) -> dict[str, str]:
         """Setup lane -> the workplans its steps run in (their its_id), in order of first use."""
         out: dict[str, list[str]] = {}
@@ -134,7 +145,7 @@ class PlanPicture:
     def pages(self) -> int:
         if len(self.plan.steps) <= self.DETAIL:
             return 1
-        return max(1, -(-len(blocks(self.plan.steps)) // self.PAGE_BLOCKS))
+        return max(1, -(-len(self.blocks) // self.PAGE_BLOCKS))
 
     def render(self, page: int = 1) -> str:
         pages = self.pages()
@@ -213,7 +224,7 @@ class PlanPicture:
         width = max(width, self.legend_width(steps))
         legend_y = self.TOP + rows * self.row_height()
         height = legend_y + self.legend_height(steps)
-        out = self._head(width, height, f"{len(steps)} workingsteps, {len(self.plan.tool_changes())} tool changes, "
+        out = self._head(width, height, f"{len(steps)} workingsteps, {len(self.tool_changes)} tool changes, "
                                         f"{len(self.lanes)} setup(s); arcs join roughing and finishing on a feature")
         plans = self._lane_workplans()
         for r in range(rows):
@@ -239,7 +250,7 @@ class PlanPicture:
         for s in steps:
             i = index[s.order]
             out.append(self.box(s, self.x(i), self.y(i, s)))
-        for change in self.plan.tool_changes():
+        for change in self.tool_changes:
             i = index[change.order]
             cx, top = self.x(i) - self.GAP // 2, self.TOP + (i // self.row) * self.row_height()
             out.append(f'<g class="tool-change" data-order="{change.order}" data-from="{escape(change.before.ref)}" '
@@ -293,10 +304,10 @@ class PlanPicture:
     # -- one box per block of steps with one setup and one tool -----------------------------------
 
     def summarised(self, page: int, pages: int) -> str:
-        every = blocks(self.plan.steps)
+        every = self.blocks
         shown = every[(page - 1) * self.PAGE_BLOCKS:page * self.PAGE_BLOCKS]
         starts = {b.first.order for b in shown}
-        changes = [c for c in self.plan.tool_changes() if c.order in starts]
+        changes = [c for c in self.tool_changes if c.order in starts]
         late = {p.finish for p in self.plan.precedence_violations()}
         pitch_x, pitch_y = self.BLOCK_W + self.GAP, self.BLOCK_H + 34
         rows = -(-len(shown) // self.BLOCK_ROW)
@@ -304,7 +315,7 @@ class PlanPicture:
         width = max(20 + self.BLOCK_ROW * pitch_x + 20, self.legend_width(steps))
         legend_y = self.TOP + rows * pitch_y + 20
         height = legend_y + self.legend_height(steps)
-        out = self._head(width, height, f"{len(self.plan.steps)} workingsteps, {len(self.plan.tool_changes())} tool "
+        out = self._head(width, height, f"{len(self.plan.steps)} workingsteps, {len(self.tool_changes)} tool "
                                         f"changes, {len(self.lanes)} setup(s); page {page} of {pages}: steps "
                                         f"{shown[0].first.order}-{shown[-1].last.order}, one box per run of steps "
                                         "with one setup and one tool")

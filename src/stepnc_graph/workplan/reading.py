@@ -41,25 +41,30 @@ def _rows(store: Store, graph: str, query: str) -> list[list[str]]:
 
 # The queries read the derived layer's execution steps and what they name, each property in one scan
 # joined by hashing (docs/querying.md, "Writing fast queries"); list chains are followed in Python.
-# A program of 100k instances has 9,000 steps and 36,000 things to show: a look-up per thing, or a
-# property path per list, took most of the time.
+# A program of 100k instances has 9,000 steps and 30,000 things to show: a look-up per thing, or a
+# property path per list, took most of the time; now most of it goes to writing out the terms (an
+# IRI costs some 5 us, a number 1), so each thing's IRI is read as few times as can be.
+#: one row per step (more only for a workingstep of several operations, or an operation that both
+#: roughs and finishes): its workingstep, workplan, setup, tool, the workingstep's operation and
+#: whether that roughs or finishes, and whether the step has a next one in its root of the order
 _STEPS = """
-SELECT ?order ?ws ?wp ?setup ?tool WHERE {
+SELECT ?order ?ws ?wp ?setup ?tool ?op ?kind ?more WHERE {
   { SELECT ?step ?order WHERE { ?step sga:order ?order } }
   { SELECT ?step ?ws WHERE { ?step sga:executes ?ws } }
   OPTIONAL { { SELECT ?step ?wp WHERE { ?step sga:workplan ?wp } } }
   OPTIONAL { { SELECT ?step ?setup WHERE { ?step sga:setup ?setup } } }
   OPTIONAL { { SELECT ?step ?tool WHERE { ?step sga:tool ?tool } } }
+  OPTIONAL { { SELECT ?step ?next WHERE { ?step sga:next ?next } } }
+  OPTIONAL { { SELECT ?ws ?op ?kind WHERE {
+    { SELECT ?ws ?op WHERE { ?ws attr:its_operation ?op } }
+    OPTIONAL { { SELECT ?op ?kind WHERE {
+      { ?op a sga:RoughingOperation BIND("rough" AS ?kind) } UNION { ?op a sga:FinishingOperation BIND("finish" AS ?kind) }
+    } } }
+  } } }
+  BIND(IF(BOUND(?next), 1, 0) AS ?more)
 }"""
-#: the last step of each root of the execution order (sga:next joins the steps of one root only)
-_LAST = "SELECT ?order WHERE { ?step sga:order ?order MINUS { ?step sga:next ?next } }"
-_KINDS = """
-SELECT ?op ?kind WHERE {
-  { ?op a sga:RoughingOperation BIND("rough" AS ?kind) } UNION { ?op a sga:FinishingOperation BIND("finish" AS ?kind) }
-}"""
-#: the workingsteps' features and operations
-_STEP_EDGES = """
-SELECT ?s ?p ?o WHERE { { ?s sga:feature ?o BIND("feature" AS ?p) } UNION { ?s attr:its_operation ?o BIND("operation" AS ?p) } }"""
+#: the workingsteps' features
+_FEATURES = "SELECT ?ws ?f WHERE { ?ws sga:feature ?f }"
 #: the operations' technologies, the projects' main workplans (for the graph)
 _MORE_EDGES = """
 SELECT ?s ?p ?o WHERE {
@@ -86,14 +91,19 @@ SELECT ?cell ?i ?o ?rest WHERE {
   { SELECT ?cell ?rest WHERE { ?cell rdf:rest ?rest } }
 }"""
 #: what the plan shows of a thing (its_id, #id and class as the program's graph types it; a row per
-#: class), for the things ``NAMED`` names
+#: class), for the things ``NAMED`` names; the class as its place in ``CLASSES`` (``(<class> k)``
+#: pairs: the classes the program's graph types instances with), a number, not an IRI, for each of
+#: 30,000 things (0.1 CPU-s less at 100k instances)
 _THINGS = """
-SELECT ?x ?label ?n ?cls WHERE {
+SELECT ?x ?label ?n ?k WHERE {
   { SELECT DISTINCT ?x WHERE { NAMED } }
   { SELECT ?x ?n WHERE { GRAPH ?g { ?x p21:id ?n } } }
-  OPTIONAL { { SELECT ?x ?cls WHERE { GRAPH ?g { ?x a ?cls } } } }
+  OPTIONAL { { SELECT ?x ?k WHERE { VALUES (?cls ?k) { CLASSES } GRAPH ?g { ?x a ?cls } } } }
   OPTIONAL { { SELECT ?x ?label WHERE { ?x attr:its_id ?label } } }
 }"""
+#: the classes the program's graph types instances with (the derived layer counts each; a scan of
+#: the program's 100,000 types took 0.07 CPU-s)
+_COUNTED = "SELECT DISTINCT ?cls WHERE { ?count sga:countedClass ?cls }"
 _STEP_THINGS = "?s sga:executes|sga:workplan|sga:setup|sga:tool|sga:feature|attr:its_operation ?x"
 #: the program's projects (its_id, #id): the plan's title
 _PROJECTS = "SELECT ?n ?label WHERE { GRAPH ?g { ?p stepnc:project.its_id ?label ; p21:id ?n } }"
@@ -144,8 +154,11 @@ def _thing(info: dict[str, Thing], iri: str | None) -> Thing | None:
 
 def _things(store: Store, graph: str, named: str, info: dict[str, Thing]) -> None:
     """Add the Things ``named`` names (a SPARQL pattern binding ``?x``) to ``info``."""
-    for x, label, n, cls in _rows(store, graph, _THINGS.replace("NAMED", named)):
-        info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
+    classes = sorted({cls for (cls,) in _rows(store, graph, _COUNTED)})
+    values = " ".join(f"(<{cls}> {k})" for k, cls in enumerate(classes))
+    names = [cls.rsplit("#", 1)[-1] for cls in classes]
+    for x, label, n, k in _rows(store, graph, _THINGS.replace("NAMED", named).replace("CLASSES", values)):
+        info[x] = Thing(x, label, f"#{n}" if n else "", names[int(k)] if k else "")
 
 
 def _elements(store: Store, graph: str) -> list[tuple[str, str, int]]:
@@ -243,25 +256,34 @@ def _tool_bodies(store: Store, graph: str) -> dict[str, str]:
     return {tool: " & ".join(sorted(classes[body])) for tool, body in bodies.items() if classes.get(body)}
 
 
-def _steps(store: Store, graph: str, info: dict[str, Thing], features: dict[str, list[str]],
-           operations: dict[str, str]) -> list[Step]:
+def _steps(store: Store, graph: str, info: dict[str, Thing]) -> tuple[list[Step], list[tuple[str, str, str]]]:
     """The execution steps in order, with the things they name, whether they rough or finish and
-    their tool's body type (:func:`_add_technologies` adds the technologies)."""
-    kinds: dict[str, str] = {}
-    for iri, kind in _rows(store, graph, _KINDS):
-        if kinds.get(iri) != "rough":  # an operation that is both (none in ISO 14649) counts as roughing
-            kinds[iri] = kind
-    last = {int(order) for (order,) in _rows(store, graph, _LAST)}
+    their tool's body type (:func:`_add_technologies` adds the technologies); and the workingsteps'
+    ``feature`` and ``operation`` edges (for the graph)."""
+    features: dict[str, set[str]] = defaultdict(set)
+    for ws, f in _rows(store, graph, _FEATURES):
+        features[ws].add(f)
+    edges = {(ws, "feature", f) for ws, found in features.items() for f in found}
+    grouped: dict[int, list[list[str]]] = defaultdict(list)
+    for row in _rows(store, graph, _STEPS):
+        grouped[int(row[0])].append(row)
     bodies = _tool_bodies(store, graph)
     steps: list[Step] = []
-    for order, ws, wp, setup, tool in sorted(_rows(store, graph, _STEPS), key=lambda r: int(r[0])):
-        op = operations.get(ws)
-        steps.append(Step(int(order), info.get(ws) or Thing(ws, "", "", ""), _thing(info, wp), _thing(info, setup),
+    more = "0"
+    for order, rows in sorted(grouped.items()):
+        _, ws, wp, setup, tool = rows[0][:5]
+        # a workingstep of several operations (none in ISO 14649) shows the last by IRI; an
+        # operation that both roughs and finishes counts as roughing
+        op = max(r[5] for r in rows)
+        kinds = {r[6] for r in rows if r[5] == op}
+        edges.update((ws, "operation", r[5]) for r in rows if r[5])
+        steps.append(Step(order, info.get(ws) or Thing(ws, "", "", ""), _thing(info, wp), _thing(info, setup),
                           _thing(info, tool), _thing(info, op),
                           [f for f in (_thing(info, x) for x in sorted(features.get(ws, ()))) if f is not None],
-                          kinds.get(op, "") if op else "", starts_root=not steps or steps[-1].order in last,
-                          tool_body=bodies.get(tool, NO_TOOL_BODY) if tool else NO_TOOL))
-    return steps
+                          "rough" if "rough" in kinds else "finish" if "finish" in kinds else "",
+                          starts_root=more == "0", tool_body=bodies.get(tool, NO_TOOL_BODY) if tool else NO_TOOL))
+        more = rows[0][7]
+    return steps, sorted(edges)
 
 
 def _projects(store: Store, graph: str) -> list[str]:
@@ -297,15 +319,7 @@ def build_plan(store: Store, graph: str | None = None, *, network: bool = True) 
         raise PlanError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     info: dict[str, Thing] = {}
     _things(store, graph, _STEP_THINGS, info)
-    edges = sorted({(s, p, o) for s, p, o in _rows(store, graph, _STEP_EDGES)})
-    features: dict[str, list[str]] = defaultdict(list)
-    operations: dict[str, str] = {}
-    for s, p, o in edges:
-        if p == "feature":
-            features[s].append(o)
-        else:
-            operations[s] = o
-    steps = _steps(store, graph, info, features, operations)
+    steps, edges = _steps(store, graph, info)
     projects, source = _projects(store, graph), next((src for (src,) in _rows(store, graph, _SOURCE)), None)
     if network or len(steps) <= PlanPicture.DETAIL:
         _add_technologies(store, graph, steps)
