@@ -42,8 +42,9 @@ def _rows(store: Store, graph: str, query: str) -> list[list[str]]:
 # The queries read the derived layer's execution steps and what they name, each property in one scan
 # joined by hashing (docs/querying.md, "Writing fast queries"); list chains are followed in Python.
 # A program of 100k instances has 9,000 steps and 30,000 things to show: a look-up per thing, or a
-# property path per list, took most of the time; now most of it goes to writing out the terms (an
-# IRI costs some 5 us, a number 1), so each thing's IRI is read as few times as can be.
+# property path per list, took most of the time; now most of it goes to the joins (some 3 us a row
+# each) and to writing out the terms (an IRI 2-6 us, a number 1): the steps' facts come in one
+# query, an operation's IRI once a step (not again as the subject of its kind), a class as a number.
 #: one row per step (more only for a workingstep of several operations, or an operation that both
 #: roughs and finishes): its workingstep, workplan, setup, tool, the workingstep's operation and
 #: whether that roughs or finishes, and whether the step has a next one in its root of the order
