@@ -5,8 +5,10 @@ from __future__ import annotations
 import json
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import Any
 
 import networkx as nx
+import pyoxigraph as ox
 import pytest
 from click.testing import CliRunner
 
@@ -21,6 +23,7 @@ EXAMPLE = ROOT / "examples" / "shaft_two_setups.stp"
 SLEEVE = FIXTURES / "query" / "sleeve_two_setups.stp"
 STRUCTURES = FIXTURES / "query" / "structures.stp"
 SVG = "{http://www.w3.org/2000/svg}"
+RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
 
 
 def plan_of(path: Path) -> tuple[GraphStore, Plan]:
@@ -46,6 +49,63 @@ def test_analyses_of_the_sleeve() -> None:
     assert (tool.label, tool.ref, uses) == ("T01 DCMT 11T304", "#100", 8)
     pairs = [(f.label, r, fin) for f, r, fin in plan.rough_finish_pairs()]
     assert ("OD 40", 12, 11) in pairs and ("FACE R", 1, 2) in pairs and ("M24X1.5 INNER", 7, 8) in pairs
+
+
+def _reference_steps(store: GraphStore, graph: str) -> list[tuple[object, ...]]:
+    """The steps as a look-up per thing reads them straight from the triples (slow, plainly right):
+    a thing's #id and class from the program's graph, its its_id and the steps from the derived
+    layer; a workingstep's operation the last by IRI, roughing before finishing."""
+    from stepnc_graph.core.naming import ANALYSIS_NS, ATTRIBUTE_NS, P21_NS, derived_graph_iri
+    from stepnc_graph.workplan.model import Thing
+
+    program, derived = ox.NamedNode(graph), ox.NamedNode(derived_graph_iri(graph))
+
+    def objects(node: Any, predicate: str, where: ox.NamedNode) -> list[Any]:
+        return sorted((q.object for q in store.quads_for_pattern(node, ox.NamedNode(predicate), None, where)),
+                      key=lambda o: o.value)
+
+    def thing(node: Any) -> Thing | None:
+        if node is None:
+            return None
+        ids, labels = objects(node, P21_NS + "id", program), objects(node, ATTRIBUTE_NS + "its_id", derived)
+        classes = objects(node, RDF_TYPE, program)
+        if not ids:
+            return Thing(node.value, "", "", "")
+        return Thing(node.value, labels[0].value if labels else "", f"#{ids[0].value}",
+                     classes[0].value.rsplit("#", 1)[-1] if classes else "")
+
+    def one(node: Any, name: str) -> Any:
+        found = objects(node, ANALYSIS_NS + name, derived)
+        return found[0] if found else None
+
+    out: list[tuple[object, ...]] = []
+    quads: list[Any] = list(store.quads_for_pattern(None, ox.NamedNode(ANALYSIS_NS + "order"), None, derived))
+    steps = sorted((int(q.object.value), q.subject) for q in quads)
+    starts = True
+    for order, step in steps:
+        ws = one(step, "executes")
+        assert ws is not None
+        operations = objects(ws, ATTRIBUTE_NS + "its_operation", derived)
+        op = operations[-1] if operations else None
+        kinds = {o.value.rsplit("#", 1)[-1] for o in objects(op, RDF_TYPE, derived)} if op else set()
+        kind = "rough" if "RoughingOperation" in kinds else "finish" if "FinishingOperation" in kinds else ""
+        out.append((order, thing(ws), thing(one(step, "workplan")), thing(one(step, "setup")),
+                    thing(one(step, "tool")), thing(op), [thing(f) for f in objects(ws, ANALYSIS_NS + "feature", derived)],
+                    kind, starts))
+        starts = one(step, "next") is None
+    return out
+
+
+@pytest.mark.parametrize("path", [EXAMPLE, SLEEVE, STRUCTURES, FIXTURES / "editions" / "plate_fdis2001.stp"],
+                         ids=lambda p: p.name)
+def test_the_plan_reads_what_a_look_up_per_thing_reads(path: Path) -> None:
+    """build_plan reads the steps in a few queries, joined in Python, for speed: the same steps, as
+    data, as a look-up per thing gives (every field but the tool body and technology, tested above)."""
+    store, plan = plan_of(path)
+    found = [(s.order, s.workingstep, s.workplan, s.setup, s.tool, s.operation, s.features, s.kind, s.starts_root)
+             for s in plan.steps]
+    assert found == _reference_steps(store, plan.program) and found
+    assert plan.steps == build_plan(store, network=False).steps  # the steps do not depend on the graph
 
 
 def test_the_graph_holds_the_plan_structure() -> None:
