@@ -62,6 +62,7 @@ from stepnc_graph.graphs.vocabulary_graph import is_throwaway, vocabulary_for_qu
 
 from stepnc_graph.querying.sparql_errors import explain
 from stepnc_graph.querying.terms import term_warnings
+from stepnc_graph.store.behaviour import wrong_answers
 
 
 if TYPE_CHECKING:
@@ -646,21 +647,11 @@ def _warnings(store: Store, graph: str | None, vocabulary: bool = True) -> list[
     return out
 
 
-#: library queries a store answers wrongly (found by tests/test_live_stores.py): the store, by its
-#: ``Server`` header, and what goes wrong -- said with every answer, never passed on silently
-KNOWN_WRONG: dict[str, tuple[re.Pattern[str], str]] = {
-    "operations-per-feature": (re.compile(r"\s*Virtuoso/", re.IGNORECASE),
-                               "drops rows of this query's joins on some data (a defect of the store: the same data "
-                               "gives all rows on the embedded store and on Oxigraph's server)"),
-}
-
-
 def known_wrong_answers(store: Store, name: str) -> list[str]:
-    """A warning when ``store`` is known to answer the library query ``name`` wrongly (:data:`KNOWN_WRONG`)."""
-    known = KNOWN_WRONG.get(name)
-    if known is None or store.server is None or known[0].match(store.server) is None:
-        return []
-    return [f"{store.server} {known[1]}: rows may be missing here; the embedded store (--store) answers exactly"]
+    """A warning for each behaviour of ``store`` known to change the rows of the library query
+    ``name`` (the table of :mod:`stepnc_graph.store.behaviour`, by the store's ``Server`` header)."""
+    return [f"{store.server} {b.does}: rows may be missing here; the embedded store (--store) answers exactly"
+            for b in wrong_answers(store.server, name)]
 
 
 #: a GROUP_CONCAT aggregate and the variable it is bound to
