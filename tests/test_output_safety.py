@@ -395,7 +395,7 @@ def test_normal_csv_is_unchanged() -> None:
 
 
 def test_the_formula_guard_does_not_depend_on_oxigraphs_json_layout() -> None:
-    from stepnc_graph.querying.query import _guard_formulas
+    from stepnc_graph.querying.results import _guard_formulas
 
     compact = ('{"head":{"vars":["v"]},"results":{"bindings":[{"v":{"type":"literal","value":"=1"}},'
                '{"v":{"type":"literal","value":"-2","datatype":"http://www.w3.org/2001/XMLSchema#integer"}},'

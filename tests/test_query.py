@@ -382,3 +382,17 @@ def test_html_reference_helps_an_analyst() -> None:
     assert '<a href="#machining_operation"><code>machining_operation</code></a>' in section  # type linked
     used = html[html.index('id="setup"'):]
     assert "Used by" in used[:used.index("</section>")] and "workplan</code></a>.<code>its_setup" in used
+
+
+def test_program_summary_names_the_project_with_the_smallest_id(tmp_path: Path) -> None:
+    """A program holding several projects is summarised by the one with the smallest #id: one
+    project looked up per program (not each copy's), the same answer on every store -- not
+    whichever one the store's SAMPLE picks."""
+    text = (ROOT / "examples" / "shaft_two_setups.stp").read_text().replace(
+        "#1=PROJECT('SHAFT-42',", "#1=PROJECT('FIRST PROJECT',#2,(#10),$,$,$);\n#9001=PROJECT('SHAFT-42',")
+    path = tmp_path / "two_projects.stp"
+    path.write_text(text)
+    store = sg.open_store(memory=True)
+    sg.load(store, [path])
+    [row] = sg.query(store, "program-summary").rows
+    assert row["project"] == "FIRST PROJECT" and row["workpiece"] == "SHAFT 42 BLANK D60X150"

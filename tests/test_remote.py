@@ -578,9 +578,10 @@ def test_a_server_that_rounds_doubles_is_found_by_the_probe_and_left_unchanged(
 
 
 def test_a_library_query_a_store_answers_wrongly_is_named_with_its_answer() -> None:
-    from stepnc_graph.querying.query import KNOWN_WRONG, known_wrong_answers
+    from stepnc_graph.querying.query import known_wrong_answers
+    from stepnc_graph.store.behaviour import BEHAVIOURS
 
-    [name] = KNOWN_WRONG
+    [name] = {q for b in BEHAVIOURS for q in b.queries}
     with fake_endpoint(empty_store, "Virtuoso/07.20.3229 (Linux)") as (url, _), open_remote(url) as store:
         [said] = known_wrong_answers(store, name)
         assert said.startswith("Virtuoso/07.20.3229") and "rows may be missing" in said

@@ -56,6 +56,7 @@ import pyoxigraph as ox
 from stepnc_graph.store.bindings import bind_in_groups
 from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
 from stepnc_graph.store import StoreError
+from stepnc_graph.store.behaviour import lacks
 from stepnc_graph.store.contract import Capabilities, Chunk
 from stepnc_graph.store.answers import (
     RemoteError,
@@ -91,12 +92,6 @@ _TURTLE = "text/turtle"
 
 def _value(term: Any) -> str:
     return str(term.value if hasattr(term, "value") else term)
-
-
-#: servers (by their ``Server`` header) whose GROUP_CONCAT does not keep the order its values
-#: reach it in (found by tests/test_live_stores.py: Virtuoso 7.2 lists an ordered sub-SELECT's
-#: values in an order of its own once the query joins)
-_UNORDERED_CONCAT = re.compile(r"\s*Virtuoso/", re.IGNORECASE)
 
 
 #: servers (by their ``Server`` header) that load an N-Quads document POSTed to the Graph Store
@@ -464,9 +459,10 @@ class RemoteStore:
     @property
     def capabilities(self) -> Capabilities:
         """An endpoint's: persistent, read and written through requests; whether its GROUP_CONCAT
-        keeps the order of its values is known once it has answered (:data:`_UNORDERED_CONCAT`)."""
+        keeps the order of its values is known once it has answered (by its ``Server`` header, from
+        the table of :mod:`stepnc_graph.store.behaviour`)."""
         return Capabilities(persistent=True, blank_node_writes=False, local_reads=False, compactable=False,
-                            ordered_group_concat=_UNORDERED_CONCAT.match(self.server or "") is None)
+                            ordered_group_concat=not lacks(self.server, "ordered_group_concat"))
 
     @property
     def server(self) -> str | None:

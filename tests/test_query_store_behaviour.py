@@ -1,0 +1,62 @@
+"""The table of what particular stores do wrong (stepnc_graph.store.behaviour): each entry names
+what it affects, and both readers -- the remote store's capabilities and the library's warnings --
+follow it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from stepnc_graph.querying.query import known_wrong_answers, library
+from stepnc_graph.store.behaviour import BEHAVIOURS, behaviours, lacks, wrong_answers
+from stepnc_graph.store.contract import Capabilities
+from stepnc_graph.store.remote import open_remote
+
+from test_remote import empty_store, fake_endpoint
+
+VIRTUOSO = "Virtuoso/07.20.3229 (Linux) x86_64-pc-linux-gnu"
+SERVERS = [VIRTUOSO, "Oxigraph/0.5.2", "Apache-Coyote/1.1", None]
+
+
+def test_every_behaviour_names_a_capability_or_library_queries_that_exist() -> None:
+    capabilities = {f.name: f.default for f in dataclasses.fields(Capabilities)}
+    names = {q.name for q in library()}
+    for b in BEHAVIOURS:
+        assert b.capability is not None or b.queries, b
+        assert b.capability is None or capabilities.get(b.capability) is True, b  # a store has it unless named here
+        assert b.queries <= names, b
+        assert b.does and not b.does.endswith("."), b  # shown inside a sentence
+
+
+def test_a_behaviour_applies_by_the_server_header_only() -> None:
+    assert {b.does for b in behaviours(VIRTUOSO)} == {b.does for b in BEHAVIOURS}
+    assert behaviours("  virtuoso/7.2") and not behaviours("Oxigraph/0.5.2") and not behaviours(None)
+    assert not behaviours("MyProxy in front of Virtuoso/07.20")  # the header names the store first
+    assert lacks(VIRTUOSO, "ordered_group_concat") and not lacks("Oxigraph/0.5.2", "ordered_group_concat")
+    assert wrong_answers(VIRTUOSO, "operations-per-feature") and not wrong_answers(VIRTUOSO, "tool-changes")
+
+
+@pytest.mark.parametrize("server", SERVERS)
+def test_a_remote_stores_capabilities_follow_the_table(server: str | None) -> None:
+    with fake_endpoint(empty_store, server) as (url, _), open_remote(url) as store:
+        store.has_graph("urn:x")  # an answer: the store has named itself
+        declared = dataclasses.asdict(store.capabilities)
+        for b in BEHAVIOURS:
+            if b.capability is not None:
+                assert declared[b.capability] is not b.applies_to(server), (server, b)
+        assert declared["ordered_group_concat"] is (server != VIRTUOSO)
+
+
+@pytest.mark.parametrize("server", SERVERS)
+def test_every_library_query_a_store_may_answer_wrongly_carries_the_reason(server: str | None) -> None:
+    with fake_endpoint(empty_store, server) as (url, _), open_remote(url) as store:
+        store.has_graph("urn:x")
+        for q in library():
+            said = known_wrong_answers(store, q.name)
+            expected = wrong_answers(server, q.name)
+            assert len(said) == len(expected), (server, q.name)
+            for text, b in zip(said, expected, strict=True):
+                assert text.startswith(f"{server} {b.does}") and "rows may be missing" in text
+        if server == VIRTUOSO:
+            assert known_wrong_answers(store, "operations-per-feature")
