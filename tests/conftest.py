@@ -44,6 +44,45 @@ def bounded(seconds: int) -> Iterator[None]:
         signal.signal(signal.SIGALRM, previous)
 
 
+_GENERATED: dict[str, dict[str, str]] = {}
+
+
+def _inputs_digest(express_directory: Path) -> str:
+    """Every input :func:`stepnc_graph.artefacts.build.generate` reads under a root, by content: the
+    EXPRESS and its catalogue, the other editions beside them, the query library, the process shapes."""
+    import hashlib
+
+    root = express_directory.parent.parent
+    digest = hashlib.sha256()
+    for directory, pattern in ((express_directory, "*"), (express_directory.parent / "editions", "**/*"),
+                               (root / "queries", "*.rq"), (root / "shapes" / "process", "*.ttl")):
+        for path in sorted(directory.glob(pattern)):
+            if path.is_file():
+                digest.update(f"{path.relative_to(root)}\0".encode() + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+@pytest.fixture
+def generate_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``generate`` (every artefact, ~6 CPU-s) run once per set of inputs in a test session: the
+    build and staleness tests build the same inputs over and over, and only what they change
+    (an edited EXPRESS file, a process shape added) needs a fresh generation. The files are
+    compared and written by the real ``build``; only the generation is shared."""
+    from stepnc_graph.artefacts import build
+
+    real = build.generate
+
+    def once(express_directory: Path | None = None) -> dict[str, str]:
+        if express_directory is None:
+            return real(express_directory)
+        key = _inputs_digest(express_directory)
+        if key not in _GENERATED:
+            _GENERATED[key] = real(express_directory)
+        return dict(_GENERATED[key])
+
+    monkeypatch.setattr(build, "generate", once)
+
+
 @pytest.fixture
 def time_bound() -> Iterator[None]:
     yield from bounded(20)

@@ -8,13 +8,17 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
-from stepnc_graph.artefacts.build import build, generate
+from stepnc_graph.artefacts import build as artefacts
+from stepnc_graph.artefacts.build import build
 from stepnc_graph.cli import main
 from stepnc_graph.artefacts.stats import ontology_stats
 
 from conftest import FIXTURES, ROOT
+
+pytestmark = pytest.mark.usefixtures("generate_once")
 
 
 def test_committed_generated_files_equal_a_fresh_build() -> None:
@@ -55,7 +59,7 @@ def test_build_writes_into_a_fresh_root(tmp_path: Path) -> None:
 
 
 def test_generate_covers_every_schema() -> None:
-    files = generate(ROOT / "ontology" / "express")
+    files = artefacts.generate(ROOT / "ontology" / "express")
     assert {f"ontology/{s}.ttl" for s in ("machining_schema", "milling_schema", "milling_tool_schema",
                                          "turning_schema", "turning_machine_tool_schema")} <= set(files)
 

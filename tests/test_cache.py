@@ -170,7 +170,7 @@ def test_right_digest_but_damaged_records_is_stale(data_copy: Path) -> None:
         cache.read(data_copy)
 
 
-def test_build_check_reports_the_compiled_model_stale(tmp_path: Path, data_copy: Path) -> None:
+def test_build_check_reports_the_compiled_model_stale(tmp_path: Path, data_copy: Path, generate_once: None) -> None:
     root = data_copy.parent
     build(root)
     assert build(root, check=True).stale == ()

@@ -119,7 +119,7 @@ def test_extra_shapes_compile_here_without_a_warning(tmp_path: Path) -> None:
     assert not validate([EXAMPLE], extra_shapes=[rule]).conforms  # "WS1 FACE RIGHT ROUGH" is longer than 3
 
 
-def test_build_writes_and_checks_the_compiled_checks(tmp_path: Path) -> None:
+def test_build_writes_and_checks_the_compiled_checks(tmp_path: Path, generate_once: None) -> None:
     root = tmp_path / "root"
     shutil.copytree(ROOT / "ontology" / "express", root / "ontology" / "express")
     build(root)
