@@ -409,9 +409,13 @@ class RunContext:
         return " UNION ".join(parts) if parts else None
 
     def class_test(self, v: str, cls: str, k: int) -> str:
+        """``v`` is an instance of ``cls`` (SHACL 2.2.2's class membership): typed with a class of
+        its closure that occurs in the data graph (a class no node has cannot type ``v``, and the
+        shorter VALUES is what the store joins every value node with), or an individual the support
+        files type."""
         closure = self.hierarchy.closure(cls)
-        named = " ".join(sorted(c for c in closure if c.startswith("<")))
-        test = f"EXISTS {{ {v} a ?_c{k} . VALUES ?_c{k} {{ {named} }} }}"
+        named = " ".join(sorted(c for c in closure & self.present if c.startswith("<")))
+        test = f"EXISTS {{ {v} a ?_c{k} . VALUES ?_c{k} {{ {named} }} }}" if named else "false"
         individuals = self.hierarchy.typed(closure)
         return f"({test} || {v} IN ({', '.join(individuals)}))" if individuals else test
 
@@ -490,9 +494,7 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
     subclasses, individuals = hierarchy if hierarchy is not None else ({}, {})
     ctx = RunContext(Hierarchy(subclasses, individuals, edges), present,
                      store.contains_named_graph(ox.NamedNode(LITERALS_GRAPH)))
-    # a node with two types that a class target can reach: not the file node (p21:ExchangeStructure, prov:Entity)
-    multi_typed = bool(store.query(f"ASK {{ ?s a ?t1 , ?t2 FILTER(!sameTerm(?t1, ?t2)) "
-                                   f"FILTER NOT EXISTS {{ ?s a <{P21_NS}ExchangeStructure> }} }}", default_graph=g))
+    multi_typed = _multi_typed(store, g)
     todo: list[tuple[Check, str]] = []
     for check in checks:
         if check.implied in skip or (check.excludes is not None and not multi_typed and not ctx.hierarchy.extended
@@ -540,6 +542,19 @@ def run(store: ox.Store, graph: str, checks: list[Check], skip: frozenset[str] =
                 seen.add(key)
                 rows += [Row(check, focus_node, value, path, bindings)] * times.get(str(focus_node), 1)
     return rows, len(todo)
+
+
+def _multi_typed(store: ox.Store, g: ox.NamedNode) -> bool:
+    """Whether a node of ``g`` has two types, the file node (p21:ExchangeStructure, prov:Entity)
+    aside: the type triples outnumber their subjects by more than the file nodes' own do. Two
+    counts, because a self-join of the type triples (``?s a ?t1 , ?t2``) costs 0.24 CPU-s at 100k
+    instances against 0.05."""
+    def excess(pattern: str) -> int:
+        [row] = store.query(f"SELECT (COUNT(*) AS ?n) (COUNT(DISTINCT ?s) AS ?d) WHERE {{ {pattern} }}",  # type: ignore[misc]
+                            default_graph=g)
+        return int(row[0].value) - int(row[1].value)
+
+    return excess("?s a ?t") > excess(f"?s a <{P21_NS}ExchangeStructure> , ?t")
 
 
 def _multiplicity(store: ox.Store, g: ox.NamedNode, ctx: RunContext, check: Check) -> dict[str, int]:
