@@ -115,3 +115,24 @@ def test_distinctive_names_of_the_fixtures_are_the_old_patterns() -> None:
         assert names == _old_distinctive(text), program.name
         found += len(names)
     assert found > 0  # some fixture is of the 2001 edition
+
+
+def test_the_tie_prefilter_agrees_with_the_exact_test() -> None:
+    """``_tie_away_from_zero`` leaves the exact (Fraction) test to floats whose denominator divides
+    ``2 * 10**places``: on every other float it could not find a tie; ties and near-ties agree."""
+    from fractions import Fraction
+
+    from stepnc_graph.mapping import ntriples as T
+
+    def exact(value: float, text: str) -> str:
+        places = len(text) - text.index(".") - 1
+        num, den = value.as_integer_ratio()
+        if abs(Fraction(num, den)) - abs(Fraction(text)) != Fraction(1, 2 * 10 ** places):
+            return text
+        return text[:-1] + str(int(text[-1]) + 1)
+
+    values = [k / 2 ** j for k in range(-300, 300) for j in range(1, 12)]
+    values += [562949953421312.25 + i for i in range(-50, 50)] + [0.1 * k for k in range(1000)]
+    shown = [(v, repr(v)) for v in values if "." in repr(v) and "e" not in repr(v) and not repr(v).endswith(".0")]
+    assert sum(T._tie_away_from_zero(v, t) != t for v, t in shown) > 10  # ties are among them
+    assert [T._tie_away_from_zero(v, t) for v, t in shown] == [exact(v, t) for v, t in shown]
