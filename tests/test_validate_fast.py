@@ -40,7 +40,7 @@ def test_class_tests_name_only_the_classes_the_data_graph_holds() -> None:
     """A node can only be typed with a class some node has: the VALUES of a class test is the
     closure cut to the classes present (what the store joins each value node with), and ``false``
     when none is."""
-    from stepnc_graph.validation.engine import Hierarchy, RunContext
+    from stepnc_graph.validation.runner import Hierarchy, RunContext
 
     sub = {"<urn:C>": {"<urn:A>", "<urn:B>"}}
     ctx = RunContext(Hierarchy(sub, {}, []), {"<urn:A>", "<urn:X>"}, False)
@@ -59,7 +59,7 @@ def test_class_tests_name_only_the_classes_the_data_graph_holds() -> None:
      True),
 ])
 def test_multi_typed_counts_answer_what_the_self_join_answered(extra: str, expected: bool) -> None:
-    from stepnc_graph.validation.engine import _multi_typed
+    from stepnc_graph.validation.runner import _multi_typed
 
     store = ox.Store()
     g = ox.NamedNode("urn:graph")
