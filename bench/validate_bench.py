@@ -2,6 +2,7 @@
 on the W3C SHACL test suite and on programs of 10k and 100k instances, in one run.
 
     python bench/validate_bench.py --sizes 10000 100000 [--pyshacl-max 10000] [--rust-max 100000]
+                                   [--baseline OTHER/src]
 
 1. **The W3C suite** (tests/w3c-shacl): every approved test run by stepnc-graph's engine and by
    pySHACL, each in a fresh process; total wall and CPU seconds and how many pass.
@@ -15,12 +16,15 @@ on the W3C SHACL test suite and on programs of 10k and 100k instances, in one ru
    engine that is installed (``pip install -e '.[bench]'``: shacl, shacl-rust, pyshacl-turbo,
    pyrudof) up to ``--rust-max``, each in a fresh process with a ``--timeout``. "same" compares
    each engine's results (focus node, component, IRI source shape) with stepnc-graph's.
+   ``--baseline OTHER/src``: another version of stepnc-graph run end to end alternating with this
+   one, the ratio of their medians printed (before and after a change, same machine, same time).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -149,17 +153,19 @@ class OverLimit(Exception):
     """Another engine used up its CPU seconds (``--timeout``) and was stopped."""
 
 
-def _run(code: str, *args: str, cpu_limit: float | None = None) -> dict[str, Any]:
+def _run(code: str, *args: str, cpu_limit: float | None = None, src: Path | None = None) -> dict[str, Any]:
     """Run ``code`` in a fresh process; ``cpu_limit``: its CPU seconds (a busy shared machine makes
-    a wall-clock limit meaningless), wall time four times that as a guard."""
+    a wall-clock limit meaningless), wall time four times that as a guard; ``src``: import
+    stepnc_graph from there (another version's ``src``) instead of this one."""
     def limit() -> None:
         if cpu_limit is not None:
             import resource
 
             resource.setrlimit(resource.RLIMIT_CPU, (int(cpu_limit), int(cpu_limit) + 5))
 
+    env = None if src is None else {**os.environ, "PYTHONPATH": str(src)}
     out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=ROOT,
-                         timeout=cpu_limit * 4 if cpu_limit else None, preexec_fn=limit)
+                         timeout=cpu_limit * 4 if cpu_limit else None, preexec_fn=limit, env=env)
     if out.returncode in (-24, -9) and cpu_limit is not None:  # SIGXCPU, then SIGKILL at the hard limit
         raise OverLimit
     if out.returncode != 0:
@@ -209,10 +215,12 @@ def programs(args: argparse.Namespace) -> None:
 
 
 def _program(args: argparse.Namespace, kind: str, n: int, program: Path, tmp: Path, engines: list[str]) -> None:
-    runs, loads = [], []
+    runs, loads, before = [], [], []
     for _ in range(args.repeat):  # alternating, each in a fresh process
         runs.append(_run(_OURS, str(program)))
         loads.append(_run(_LOAD, str(program)))
+        if args.baseline is not None:
+            before.append(_run(_OURS, str(program), src=args.baseline))
     ours = dict(sorted(runs, key=lambda r: r["total_cpu"])[len(runs) // 2])
     load = sorted(loads, key=lambda r: r["load_cpu"])[len(loads) // 2]
     walls = [r["total_s"] for r in runs]
@@ -220,6 +228,8 @@ def _program(args: argparse.Namespace, kind: str, n: int, program: Path, tmp: Pa
           f"end to end (load {load['load_s']:.2f} s / {load['load_cpu']:.2f} CPU, validation "
           f"{ours['total_cpu'] - load['load_cpu']:.2f} CPU), {ours['rss_mb']:.0f} MB, {ours['checks']} checks, "
           f"{ours['results']} results", flush=True)
+    if before:
+        _baseline(args.baseline, before, runs)
     data, shapes = tmp / f"{kind}_{n}.nt", tmp / "shapes.ttl"
     subprocess.run([sys.executable, "-c", _EXPORT, str(program), str(data), str(shapes)], check=True, cwd=ROOT)
     mine = {tuple(k) for k in ours["keys"]}
@@ -251,6 +261,21 @@ def _program(args: argparse.Namespace, kind: str, n: int, program: Path, tmp: Pa
         print(f"  fastest agreeing Rust engine / stepnc-graph: {fastest_rust / ours['total_cpu']:.1f}x CPU")
 
 
+def _baseline(src: Path, before: list[dict[str, Any]], runs: list[dict[str, Any]]) -> None:
+    """Another version's end-to-end runs (alternating with this one's, same program) next to
+    this one's: medians of CPU and wall seconds, and whether the results are the same."""
+    def medians(rs: list[dict[str, Any]]) -> tuple[float, float]:
+        return statistics.median(r["total_cpu"] for r in rs), statistics.median(r["total_s"] for r in rs)
+
+    (cpu0, wall0), (cpu1, wall1) = medians(before), medians(runs)
+    least = min(r["total_cpu"] for r in runs) / min(r["total_cpu"] for r in before)  # the least disturbed runs
+    same = all(r["keys"] == runs[0]["keys"] and r["results"] == runs[0]["results"] for r in before)
+    print(f"  baseline {src}: {wall0:.2f} s wall, {cpu0:.2f} s CPU end to end -> this version "
+          f"{cpu1 / cpu0:.2f}x its CPU ({least:.2f}x by the fastest runs), {wall1 / wall0:.2f}x its wall (runs alternating; CPU "
+          f"{[round(r['total_cpu'], 2) for r in before]} against {[round(r['total_cpu'], 2) for r in runs]}); "
+          f"{'same results' if same else 'DIFFERENT results'}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--sizes", type=int, nargs="+", default=[10000, 100000])
@@ -264,6 +289,8 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=600, help="CPU seconds per run of another engine")
     parser.add_argument("--repeat", type=int, default=3, help="runs of stepnc-graph per program (median reported)")
     parser.add_argument("--no-suite", action="store_true", help="skip the W3C suite")
+    parser.add_argument("--baseline", type=Path, help="another version's src directory (e.g. of `git worktree add` "
+                        "or `git archive`), run end to end alternating with this one, its CPU and wall compared")
     args = parser.parse_args()
     if not args.no_suite:
         suite()

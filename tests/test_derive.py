@@ -174,12 +174,12 @@ def test_turning_workingstep_features_and_nested_lists(tmp_path: Path) -> None:
 def test_list_cells_are_read_with_nested_lists(nested: bool) -> None:
     """The derived layer reads the cells along each list, and walks into the members only when one
     is a blank node: a nested list's cells are then found as well (each list indexed from 1)."""
-    from stepnc_graph.loading.derive import Lists, _Reader
+    from stepnc_graph.loading.derive import Lists, Reader
 
     store = sg.open_store(memory=True)
     inner = "( <http://x/a> <http://x/b> )" if nested else "<http://x/a>"
     store.add_turtle("http://x/g", f"<http://x/s> <http://x/p> ( {inner} <http://x/c> ) .")
-    lists = Lists.read(_Reader(store, "http://x/g"), ("http://x/p",))
+    lists = Lists.read(Reader(store, "http://x/g"), ("http://x/p",))
     assert len(lists.first) == (4 if nested else 2)
     heads = {q.object for q in store.quads_for_pattern(None, ox.NamedNode("http://x/p"), None)}
     [head] = heads
@@ -242,7 +242,7 @@ def test_the_mappers_blank_node_lines_are_what_derive_writes_as_quads(program: P
     blank nodes), which the mapper writes as Shadow chunks for a replacement to compare, are the
     quads derive() writes: the program's text read with its blank node labels kept, derive's
     queries over it give the same triples."""
-    from stepnc_graph.loading.derive import Lists, _Reader
+    from stepnc_graph.loading.derive import Lists, Reader
     from stepnc_graph.loading.loader import _Load
     from stepnc_graph.store import Shadow
 
@@ -252,7 +252,7 @@ def test_the_mappers_blank_node_lines_are_what_derive_writes_as_quads(program: P
     store = ox.Store()
     text = "".join(c for c in chunks if isinstance(c, str)).encode()
     store.extend(ox.Quad(t.subject, t.predicate, t.object, graph) for t in ox.parse(text, ox.RdfFormat.N_TRIPLES))
-    rules, reader = iso14649_rules(), _Reader(store, job.graph)  # type: ignore[arg-type]
+    rules, reader = iso14649_rules(), Reader(store, job.graph)  # type: ignore[arg-type]
     expected = {(q.subject, q.predicate, q.object) for q in Lists.read(reader, rules.list_properties).index_quads(graph)}
     expected |= {(s, p, o) for s, p, o in reader.select(rules.blank_values)}
     shadow = "".join(c.text for c in chunks if isinstance(c, Shadow))

@@ -187,7 +187,7 @@ def test_checks_the_mapping_implies_find_nothing_on_what_it_wrote(program: Path)
     """The cross-check: every check a file's validation skips, run anyway on every fixture (damaged
     ones included) finds nothing; and the file's report equals the store's, which skips nothing."""
     from stepnc_graph.validation import _implied_skips
-    from stepnc_graph.validation.engine import run
+    from stepnc_graph.validation.runner import run
 
     with api.open_store(memory=True) as store:
         [loaded] = api.load(store, [program], lenient=True)
@@ -278,7 +278,7 @@ def test_large_input_is_validated_in_a_temporary_store_on_disk(tmp_path: Path, m
     import importlib
     import tempfile
 
-    module = importlib.import_module("stepnc_graph.validation")
+    module = importlib.import_module("stepnc_graph.validation.throwaway")
     program = VFIX / "fail_plan.stp"
     in_memory = validate([program])
     monkeypatch.setattr(module, "MEMORY_VALIDATION_BYTES", 0)
@@ -348,7 +348,7 @@ def test_checks_on_threads_give_their_rows_in_check_order(monkeypatch: pytest.Mo
 
     from stepnc_graph.validation import compile_shapes
 
-    engine = importlib.import_module("stepnc_graph.validation.engine")
+    engine = importlib.import_module("stepnc_graph.validation.runner")
     checks = list(compile_shapes(shape_files()).checks)
     with api.open_store(memory=True) as store:
         [loaded] = api.load(store, [FIX / "p21" / "fail_seed_annex_d.stp"], lenient=True)
@@ -366,7 +366,7 @@ def test_oneof_checks_are_skipped_where_no_node_can_fail_them() -> None:
     import pyoxigraph as ox  # noqa: F401
 
     from stepnc_graph.validation import compile_shapes
-    from stepnc_graph.validation.engine import run
+    from stepnc_graph.validation.runner import run
 
     shipped = compile_shapes(shape_files())
     oneof = [c for c in shipped.checks if c.constraint == "not" and "oneof" in c.shape]
@@ -380,6 +380,7 @@ def test_oneof_checks_are_skipped_where_no_node_can_fail_them() -> None:
 def test_the_shipped_checks_leave_the_position_triples_out() -> None:
     """No shipped check reads p21:id/p21:line or any predicate: validate FILE loads without them (a
     sixth fewer triples). A SELECT's projection of three variables is no triple pattern."""
-    from stepnc_graph.validation import _reads_positions, compile_shapes
+    from stepnc_graph.validation import compile_shapes
+    from stepnc_graph.validation.throwaway import reads_positions
 
-    assert not _reads_positions(compile_shapes(shape_files()).checks)
+    assert not reads_positions(compile_shapes(shape_files()).checks)

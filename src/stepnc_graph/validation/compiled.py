@@ -11,20 +11,24 @@ the shapes are compiled in the process (with a :class:`CompiledShapesWarning`
 when the shipped files themselves changed since the build, never silently).
 
 The shapes graph itself (messages, labels, ISO clauses) is read only when a
-result needs describing: a conforming program never parses it.
+result needs describing: a conforming program never parses it
+(:class:`CompiledShapes`, what :func:`compile_shapes` returns for a set of shape
+files, cached per process while they are unchanged).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterable, Sequence
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from stepnc_graph.core.errors import StepncGraphWarning
 from stepnc_graph.core.resources import sources_digest
 from stepnc_graph.validation.engine import Check, Compiler
-from stepnc_graph.validation.shapes import ShapesGraph
+from stepnc_graph.validation.shapes import ShapesError, ShapesGraph
 
 FORMAT = 5  # 2: each check names the files that describe its results; 3: its argument and what implies it;
 # 4: "excludes" null for a check that always runs (was a flag "multi_typed_only" beside it);
@@ -145,3 +149,104 @@ def relative_names(files: Sequence[Path], directory: Path) -> list[str] | None:
         except ValueError:
             return None
     return names
+
+
+def shape_files(shapes_dir: Path | None = None, process: bool = True) -> list[Path]:
+    """The shipped shapes: generated files, then the process rules."""
+    if shapes_dir is None:
+        from stepnc_graph.core.resources import shapes_dir as default
+
+        shapes_dir = default()
+    files = sorted(shapes_dir.glob("*.ttl"))
+    if process:
+        files += sorted((shapes_dir / "process").glob("*.ttl"))
+    return files
+
+
+class CompiledShapes:
+    """The checks of a set of shape files, and their shapes graph, read on first use and only as far
+    as needed: describing a result reads the files its check names (:attr:`Check.files`); finding
+    none reads no file at all. ``hierarchy``: the data files' subclasses and typed individuals
+    (class -> nodes), which the checks' class tests expand to."""
+
+    def __init__(self, files: Sequence[Path], checks: tuple[Check, ...], graph: ShapesGraph | None = None,
+                 hierarchy: tuple[dict[str, set[str]], dict[str, set[str]]] | None = None,
+                 data_positions: frozenset[int] = frozenset()) -> None:
+        self.files = tuple(files)
+        self.checks = checks
+        self._graph = graph  # every file, when the shapes were compiled here
+        self._partial = ShapesGraph()
+        self._read: set[int] = set()
+        self.data_positions = data_positions
+        if hierarchy is None and graph is not None:
+            hierarchy = ({k: set(v) for k, v in graph.subclasses.items()},
+                         {k: {i for i in v if i.startswith("<")} for k, v in graph.instances.items()})
+        self.hierarchy = hierarchy or ({}, {})
+
+    @property
+    def graph(self) -> ShapesGraph:
+        """The graph of every file."""
+        return self.describing(range(len(self.files)))
+
+    def describing(self, positions: Iterable[int]) -> ShapesGraph:
+        """A graph holding (at least) the files at ``positions``: blank nodes are named by file
+        position, so it names them as the compiled checks do."""
+        if self._graph is not None:
+            return self._graph
+        for position in sorted(set(positions) - self._read):
+            self._partial.add_file(self.files[position], position, data=position in self.data_positions)
+            self._read.add(position)
+        if len(self._read) == len(self.files):
+            self._graph = self._partial
+        return self._partial
+
+
+@lru_cache(maxsize=8)
+def _compiled(files: tuple[tuple[str, float], ...], directory: str) -> CompiledShapes:
+    paths = [Path(name) for name, _mtime in files]
+    try:
+        texts = [p.read_bytes() for p in paths]
+    except OSError as exc:
+        raise ShapesError(f"{exc.filename}: {exc.strerror or exc}") from None
+    names = relative_names(paths, Path(directory))
+    data = frozenset(i for i, p in enumerate(paths) if _is_support(p, Path(directory)))
+    if names is not None:
+        shipped = Path(directory) / CACHE_FILE
+        try:
+            text = shipped.read_text(encoding="utf-8")
+            checks, hierarchy = loads(text, digest(list(zip(names, texts, strict=True))))
+            return CompiledShapes(paths, checks, hierarchy=hierarchy, data_positions=data)
+        except (OSError, StaleChecks) as exc:
+            if paths == shape_files(Path(directory)):  # the shipped set itself: say why it is not used
+                reason = exc.strerror if isinstance(exc, OSError) else str(exc)
+                warnings.warn(f"{shipped} is not used: {reason}. Compiling the shapes instead (about 0.2 s); "
+                              f"`stepnc-graph ontology build` refreshes the file.", CompiledShapesWarning,
+                              stacklevel=2)
+    try:
+        decoded = [(str(p), t.decode("utf-8")) for p, t in zip(paths, texts, strict=True)]
+    except UnicodeDecodeError as exc:
+        raise ShapesError(f"shapes are not UTF-8: {exc}") from None
+    graph, compiled_checks = compile_texts(decoded, data)
+    return CompiledShapes(paths, tuple(compiled_checks), graph, data_positions=data)
+
+
+def _is_support(path: Path, directory: Path) -> bool:
+    """Whether ``path`` is the shipped ``support.ttl``: part of the data graph, not of the shapes."""
+    try:
+        return path.resolve() == (directory / SUPPORT_FILE).resolve()
+    except OSError:
+        return False
+
+
+def compile_shapes(files: Sequence[Path], directory: Path | None = None) -> CompiledShapes:
+    """The checks of shapes files: the shipped compiled ones when ``files`` are the files they were
+    compiled from (in ``directory``, default the shipped shapes), else compiled here; cached per
+    process while the files are unchanged."""
+    for f in files:
+        if not f.is_file():
+            raise ShapesError(f"{f}: no such shapes file")
+    if directory is None:
+        from stepnc_graph.core.resources import shapes_dir
+
+        directory = shapes_dir()
+    return _compiled(tuple((str(f), f.stat().st_mtime) for f in files), str(directory))
