@@ -450,3 +450,13 @@ def test_block_runs_and_says_what_it_does(key: tuple[str, int], tmp_path: Path, 
                                           process_time_bound: None) -> None:
     block = next(b for b in blocks() if (b.file, b.index) == key)
     CHECKS[key].run(block, tmp_path, example)
+
+
+def test_ci_runs_the_readme_test_command() -> None:
+    """CI runs exactly the README's test command: what follows the venv's creation there is a line
+    of .ci/run (install and test), so the two cannot drift apart."""
+    block = next(b for b in blocks() if (b.file, b.index) == ("README.md", 1))
+    command = block.first.split("&& . .venv/bin/activate && ", 1)[1].strip()
+    assert "pytest" in command
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert command in [line.strip() for line in ci], (command, ci)
