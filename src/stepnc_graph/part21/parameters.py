@@ -144,7 +144,7 @@ def read_string(r: Part21Reader, tok: str, start: int, end: int, p21_id: int | N
         k = tok.find(_CURLY, 0, first_break)
         if k > 0 and _INSTANCE_START.search(tok, first_break):
             r._diagnose("P21-CURLY-QUOTE", start + k, p21_id,
-                           "string closed by a typographic quote (U+2019); read as closed there")
+                        "string closed by a typographic quote (U+2019); read as closed there")
             tok, end = tok[:k] + "'", start + k + 1
     try:
         return decode(tok[1:-1]), end

@@ -26,7 +26,7 @@ def keep_text(r: Part21Reader, start: int, end: int, message: str, section: int)
     end = start + len(r.text[start:end].rstrip())
     line, column = r.position(start)
     r.diagnostics.append(Diagnostic.make("P21-SYNTAX", r.filename, line, column, None,
-                                            f"{message}; kept as text"))
+                                         f"{message}; kept as text"))
     r.unreadable_texts.append(UnreadableText(start, end, line, column, section, message))
 
 
@@ -35,12 +35,12 @@ def truncate(r: Part21Reader, offset: int, p21_id: int | None) -> None:
     r._truncated = True
     inside = f"inside #{p21_id}, which is kept as text; " if p21_id is not None else "inside a DATA section; "
     r._diagnose("P21-TRUNCATED", offset, p21_id,
-                   f"the file ends {inside}it looks cut short (ENDSEC; and END-ISO-10303-21; are missing); "
-                   "everything before this point is loaded")
+                f"the file ends {inside}it looks cut short (ENDSEC; and END-ISO-10303-21; are missing); "
+                "everything before this point is loaded")
 
 
 def recover(r: Part21Reader, failure: _Failure, p21_id: int | None, start: int,
-             section: int) -> tuple[Instance | None, int]:
+            section: int) -> tuple[Instance | None, int]:
     """Report what could not be read and keep its text: as an unreadable instance (when it
     has an ``#id`` not defined before), as a later definition of its ``#id``, or as text
     that names no instance. Returns the instance and the offset where reading goes on."""

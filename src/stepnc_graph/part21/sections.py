@@ -25,7 +25,7 @@ def read_header(r: Part21Reader) -> int:
     m = _MAGIC.match(r.text)
     if m is None:
         raise r._syntax_error(_Failure("not a Part 21 file: expected 'ISO-10303-21;' at the start",
-                                          0, ("ISO-10303-21;",)), None)
+                                       0, ("ISO-10303-21;",)), None)
     first = len(r.diagnostics)
     try:
         _, _, header_start, _ = r._token(m.end())
@@ -152,7 +152,7 @@ def section_start(r: Part21Reader, pos: int) -> int | None:
     if kind == "eof" and r.lenient:
         if not r._truncated:
             r._diagnose("P21-END-MISSING", start, None,
-                           "the file ends without 'END-ISO-10303-21;'; everything before it is loaded")
+                        "the file ends without 'END-ISO-10303-21;'; everything before it is loaded")
         return None
     raise _Failure(f"expected DATA or END-ISO-10303-21, found {show(tok)}" if tok else
                    "expected DATA or END-ISO-10303-21, found end of file", start,

@@ -33,6 +33,10 @@ _CURLY = "\u2019"
 
 
 class _Failure(Exception):
+    """A syntax error at offset ``pos``, with what was expected there; the reader turns it into
+    a :class:`~stepnc_graph.part21.diagnostics.Part21SyntaxError` with line and column (or, lenient,
+    recovers at the next statement)."""
+
     def __init__(self, message: str, pos: int, expected: tuple[str, ...] = ()) -> None:
         super().__init__(message)
         self.message = message
@@ -49,7 +53,8 @@ def _integer(digits: str, pos: int, what: str) -> int:
         raise _too_long(digits, pos, what) from None
 
 
-def _too_long(digits: str, pos: int, what: str) -> "_Failure":
+def _too_long(digits: str, pos: int, what: str) -> _Failure:
+    """The failure for an integer ``digits`` too long for ``int()`` (see :func:`_integer`)."""
     n = len(digits.lstrip("+-#"))
     limit = sys.get_int_max_str_digits()
     return _Failure(f"{what} of {n} digits: longer than the {limit} digits an integer may have", pos,
@@ -57,6 +62,7 @@ def _too_long(digits: str, pos: int, what: str) -> "_Failure":
 
 
 def bad_token(kind: str, tok: str, start: int, expected: tuple[str, ...]) -> _Failure:
+    """The failure for an unexpected token: a lone quote or ``/*`` is a string or comment never closed."""
     if kind == "bad" and tok == "'":
         return _Failure("string is never closed", start, ("'",))
     if kind == "bad" and tok == "/*":

@@ -61,7 +61,7 @@ class HttpClient:
             try:
                 # verify given here: requests lets REQUESTS_CA_BUNDLE override the session's value
                 response = self.session.request(method, url, timeout=(min(CONNECT_TIMEOUT, timeout), timeout),
-                                              verify=self.endpoint.verify, stream=True, **kwargs)
+                                                verify=self.endpoint.verify, stream=True, **kwargs)
                 content = None if stream and response.status_code < 400 else _content(response, timeout)
             except requests.Timeout as e:
                 if not isinstance(e, requests.ConnectTimeout):
@@ -98,7 +98,7 @@ class HttpClient:
         raise RemoteError(f"{failure} (after {self.endpoint.retries + 1} attempts)")
 
     def _digest_asked(self, response: Any) -> bool:
-        """Whether a 401 asks for HTTP Digest where Basic was sent (:data:`AUTH_ENV` unset): then
+        """Whether a 401 asks for HTTP Digest where Basic was sent (:data:`~stepnc_graph.store.endpoint.AUTH_ENV` unset): then
         the session answers with Digest from now on (Virtuoso's authenticated endpoints)."""
         import requests
 
