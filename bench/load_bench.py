@@ -4,6 +4,7 @@ time goes, each next to a reference measured in the same run.
     pip install -e '.[bench]' && python bench/load_bench.py            # 10k and 100k
     python bench/load_bench.py --sizes 10000 100000 1000000             # add 1M
     python bench/load_bench.py --sizes 100000 --programs replicated     # the issue-32 figures only
+    python bench/load_bench.py --sizes 100000 --parse-only --repeat 5 --baseline OLD/src  # parse vs older code
 
 For each size, on a generated program and on a replicated real one (bench/generate.py: copies of the
 shipped two-setup shaft unless ``--real`` names another), each measurement in a fresh process:
@@ -105,8 +106,6 @@ def child(kind: str, path: str, extra: list[str]) -> None:
     if kind == "export":
         child_export(path, extra[0], extra[1] if len(extra) > 1 else None)
         return
-    from steputils import p21
-
     import stepnc_graph as sg
     from stepnc_graph.loading.loader import ntriples_chunks
     from stepnc_graph.part21 import read_file
@@ -121,6 +120,8 @@ def child(kind: str, path: str, extra: list[str]) -> None:
     started, cpu_started = time.perf_counter(), time.process_time()
     try:
         if kind == "steputils":
+            from steputils import p21  # imported here: a parse-only run needs no steputils
+
             doc = p21.readfile(path)
             count = sum(len(section.instances) for section in doc.data)
         elif kind == "parse":
@@ -273,10 +274,12 @@ def child_export(store_dir: str, fmt: str, graph: str | None) -> None:
                       "bytes": len(data), "rss_mb": _rss_mb()}))
 
 
-def run_child(*args: str, timeout: float = 3600) -> dict[str, Any] | None:
+def run_child(*args: str, timeout: float = 3600, src: str | None = None) -> dict[str, Any] | None:
+    """One measurement in a fresh process; ``src``: the stepnc_graph package of that source tree."""
+    env = {**os.environ, "PYTHONPATH": src} if src else None
     try:
         done = subprocess.run([sys.executable, __file__, "--child", *args], capture_output=True, text=True,
-                              timeout=timeout, check=True)
+                              timeout=timeout, check=True, env=env)
     except subprocess.TimeoutExpired:
         return None
     except subprocess.CalledProcessError as e:
@@ -335,6 +338,26 @@ def profile(program: str, path: Path, work: Path, load: dict[str, float], bulk_f
     return on
 
 
+def compare_parse(path: Path, repeat: int, baseline: str) -> None:
+    """Parse-only CPU of the ``baseline`` source tree's reader and this one's, runs alternating
+    (so that a change in the machine's load falls on both), each in a fresh process."""
+    runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "this code": []}
+    for _ in range(repeat):
+        for name, src in (("baseline", baseline), ("this code", None)):
+            row = run_child("parse", str(path), src=src)
+            assert row is not None, f"the {name} parse failed"
+            runs[name].append(row)
+    print(f"  parse only, {repeat} runs each, alternating:  {'wall s':>8} {'CPU s':>8} {'best CPU':>9}")
+    for name, rows in runs.items():
+        print(f"  {name:42} {statistics.median(r['seconds'] for r in rows):8.2f} "
+              f"{statistics.median(r['cpu'] for r in rows):8.2f} {min(r['cpu'] for r in rows):9.2f}")
+    old, new = runs["baseline"], runs["this code"]
+    print(f"  this code / baseline: {statistics.median(r['cpu'] for r in new) / statistics.median(r['cpu'] for r in old):.3f}x "
+          f"median CPU, {min(r['cpu'] for r in new) / min(r['cpu'] for r in old):.3f}x best CPU, "
+          f"{statistics.median(r['seconds'] for r in new) / statistics.median(r['seconds'] for r in old):.3f}x median wall",
+          flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
@@ -346,6 +369,10 @@ def main() -> None:
                     help="largest size whose load is profiled and exported (0: none)")
     ap.add_argument("--real", type=Path, default=HERE.parent / "examples" / "shaft_two_setups.stp",
                     help="a real program to replicate beside the generated one (default: the shipped example)")
+    ap.add_argument("--baseline", metavar="SRC",
+                    help="also parse each program with the stepnc_graph of SRC (an older source tree's src/), "
+                         "runs alternating with this code's, --repeat each: the parse-only ratio")
+    ap.add_argument("--parse-only", action="store_true", help="measure the parse only (with --baseline: the ratio)")
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -372,6 +399,14 @@ def main() -> None:
             repeat = 1 if size >= 1_000_000 else args.repeat
             print(f"\n== {program} program, {size:,} instances ({path.name}, {path.stat().st_size / 1e6:.1f} MB)",
                   flush=True)
+            if args.baseline:
+                compare_parse(path, repeat, args.baseline)
+            if args.parse_only:
+                if not args.baseline:
+                    row = measure("parse", path, repeat, 3600)
+                    assert row is not None
+                    print(f"  stepnc-graph parse: {row['seconds']:.2f} s wall, {row['cpu']:.2f} CPU-s (medians)")
+                continue
             ref = measure("steputils", path, repeat, args.steputils_timeout)
             parse = measure("parse", path, repeat, 3600)
             load = measure("load", path, repeat, 3600)
