@@ -45,7 +45,8 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
             out[f"{entry.directory}/{rel}"] = text
     digest = cache.express_digest(catalog.directory)
     out[f"ontology/{cache.CACHE_FILE}"] = cache.dumps(catalog, model, plans.dump(), digest)
-    out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(generated["shacl"], catalog.directory.parent.parent / "shapes")
+    shapes = {**generated["shacl"], **{k.removeprefix("shapes/"): v for k, v in editions_out.items() if k.startswith("shapes/")}}
+    out[f"shapes/{compiled.CACHE_FILE}"] = compiled_checks(shapes, catalog.directory.parent.parent / "shapes")
     out[f"ontology/{editions.TABLE_FILE}"] = edition_table(catalog.directory, model)
     out.update(editions_out)
     return out
@@ -55,9 +56,12 @@ def edition_files(express_directory: Path, base: Plans) -> tuple[dict[str, str],
     """Per other edition found beside the shipped one: its compiled model and plans
     (``ontology/editions/<edition>.compiled-model.json``, read by
     :func:`stepnc_graph.mapping.editions.own_plans`) and its own terms as OWL
-    (``ontology/edition_<edition>.ttl``, in the vocabulary graph); and the (edition class, 2002
-    class) pairs the shapes' class hierarchy adds."""
-    from stepnc_graph.mapping.editions import COMPILED, build_edition_plans, counterpart_classes, edition_turtle
+    (``ontology/edition_<edition>.ttl``, in the vocabulary graph), its WHERE rules that differ from
+    2002 as shapes (``shapes/edition_<edition>.ttl``, :mod:`stepnc_graph.generators.edition_shapes`);
+    and the (edition class, 2002 class) pairs the shapes' class hierarchy adds."""
+    from stepnc_graph.generators import edition_shapes
+    from stepnc_graph.mapping.editions import (COMPILED, RENAMED, build_edition_plans, counterpart_classes,
+                                               edition_turtle)
 
     out: dict[str, str] = {}
     pairs: list[tuple[str, str]] = []
@@ -71,6 +75,9 @@ def edition_files(express_directory: Path, base: Plans) -> tuple[dict[str, str],
                                                                          cache.express_digest(directory))
         plans = build_edition_plans(edition, base, own)
         out[f"ontology/edition_{edition}.ttl"] = edition_turtle(edition, plans, base)
+        naming = edition_shapes.edition_naming(base.n, own, plans)
+        out["shapes/" + edition_shapes.FILE.format(edition=edition)] = edition_shapes.edition_shapes(
+            edition, catalog, model, base.model, naming, RENAMED.get(edition, {}))
         pairs += counterpart_classes(edition, plans, base)
     return out, pairs
 

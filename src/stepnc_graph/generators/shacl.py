@@ -88,12 +88,14 @@ class ShapesGenerator:
     shapes = SHAPES
 
     def __init__(self, model: SchemaModel, catalog: Catalog, naming: Naming | None = None,
-                 edition_classes: list[tuple[str, str]] | None = None) -> None:
+                 edition_classes: list[tuple[str, str]] | None = None, shape_prefix: str = "") -> None:
         self.model = model
         self.catalog = catalog
         self.n = naming or catalog.naming
         #: (class of another edition, its 2002 counterpart) IRIs: subclass pairs the support graph adds
         self.edition_classes = edition_classes or []
+        #: before each rule shape's name: another edition's rules are shapes of their own
+        self.shape_prefix = shape_prefix
         self._coverage: list[RuleCoverage] = []
         self._translations: dict[tuple[str, str], Translation | Untranslatable] = {}
         self._facets: dict[str, list[tuple[str, Decimal | int]]] = {}
@@ -407,11 +409,12 @@ class ShapesGenerator:
 
     # -- WHERE rules ----------------------------------------------------------------------
 
-    def add_rule(self, g: Graph, e: Entity, rule: WhereRule) -> None:
+    def add_rule(self, g: Graph, e: Entity, rule: WhereRule) -> URIRef | None:
+        """The rule's shape, added to ``g``; None when the rule is not translated."""
         t = self._translations[(e.name, rule.label)]
         if isinstance(t, Untranslatable):
-            return
-        shape = SHAPES[f"{e.name}-{rule.label}"]
+            return None
+        shape = SHAPES[f"{self.shape_prefix}{e.name}-{rule.label}"]
         g.add((shape, RDF.type, SH.NodeShape))
         g.add((shape, SH.targetClass, self.n.declaration(e.name)))
         text = express_text(rule.expr)
@@ -433,7 +436,7 @@ class ShapesGenerator:
         if t.note:
             g.add((shape, RDFS.comment, Literal(f"Exact reading: {t.note}.")))
         if t.core is not None:
-            prop = SHAPES[f"{e.name}-{rule.label}.{t.core.attribute.name}"]
+            prop = SHAPES[f"{self.shape_prefix}{e.name}-{rule.label}.{t.core.attribute.name}"]
             g.add((shape, SH.property, prop))
             g.add((prop, RDF.type, SH.PropertyShape))
             # no sh:message: SHACL makes a shape's message every result's, and "allowance: must be >= 0.0,
@@ -450,6 +453,7 @@ class ShapesGenerator:
             g.add((c, RDF.type, SH.SPARQLConstraint))
             g.add((c, SH.select, Literal(t.sparql)))
             g.add((c, SH.prefixes, URIRef(SHAPES_NS[:-1])))
+        return shape
 
     # -- typed values -----------------------------------------------------------------------
 

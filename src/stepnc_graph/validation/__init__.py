@@ -168,7 +168,7 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
         ran += n
         phase(f"describing {len(rows):,} result(s) of {_short_graph(graph)}")
         describer = Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
-        results += edition_rules(oxstore, graph, describer.results(rows))
+        results += edition_rules(oxstore, graph, describer.results(rows), shapes.files)
         if data and graph in data:
             results += [ill_typed_result(graph, bad) for bad in data[graph].ill_typed]
         elif graph in diagnostics:

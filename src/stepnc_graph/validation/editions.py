@@ -8,10 +8,20 @@ What the 2002 shapes require of an attribute the program's edition does not have
 (the 2002 ``boring_tool.retract_movement_forbidden`` of a 2001 ``BORING_TOOL``) is no rule of that
 edition: :func:`edition_rules` drops those results, for each instance by the edition it was read in
 (its ``p21:edition``, else its file's).
+
+A WHERE rule the edition has otherwise than 2002 (or not at all) is another matter: the build
+compiles each such rule of the edition into a shape of its own (``shapes/edition_<edition>.ttl``,
+:mod:`stepnc_graph.generators.edition_shapes`) marked ``shapes:edition``, and marks the 2002 shape
+it differs from ``shapes:notForEdition``. :func:`edition_rules` keeps a result of an edition's shape
+only for an instance of that edition, and a result of a 2002 shape only for an instance of an
+edition it holds for: each instance is checked by its own edition's rule.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from functools import lru_cache
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pyoxigraph as ox
@@ -38,15 +48,52 @@ def _editions(store: ox.Store, graph: str) -> tuple[str, dict[str, str]]:
     return own, others
 
 
-def edition_rules(store: ox.Store, graph: str, results: list[Result]) -> list[Result]:
-    """``results`` without those that hold an instance of another edition than 2002 to a 2002
-    attribute its edition does not give its entity."""
+#: the shapes' vocabulary (:data:`stepnc_graph.generators.shacl.SHAPES_NS`)
+_SHAPES_NS = "https://w3id.org/stepnc-graph/shapes#"
+#: what names an edition's rule shapes (:data:`stepnc_graph.generators.edition_shapes.FILE`)
+_EDITION_FILES = "edition_*.ttl"
+
+
+@lru_cache(maxsize=8)
+def _edition_marks(files: tuple[tuple[str, float], ...]) -> tuple[dict[str, str], dict[str, frozenset[str]]]:
+    """From the edition shape files (path, modification time): each edition shape's edition, and
+    each 2002 shape's editions it does not hold for."""
+    own: dict[str, str] = {}
+    not_for: dict[str, set[str]] = {}
+    for path, _ in files:
+        store = ox.Store()
+        store.load(path=path, format=ox.RdfFormat.TURTLE)
+        for q in store.quads_for_pattern(None, ox.NamedNode(_SHAPES_NS + "edition"), None, None):
+            if isinstance(q.subject, ox.NamedNode) and isinstance(q.object, ox.Literal):
+                own[q.subject.value] = q.object.value
+        for q in store.quads_for_pattern(None, ox.NamedNode(_SHAPES_NS + "notForEdition"), None, None):
+            if isinstance(q.subject, ox.NamedNode) and isinstance(q.object, ox.Literal):
+                not_for.setdefault(q.subject.value, set()).add(q.object.value)
+    return own, {k: frozenset(v) for k, v in not_for.items()}
+
+
+def edition_marks(shape_files: Sequence[Path]) -> tuple[dict[str, str], dict[str, frozenset[str]]]:
+    """:func:`_edition_marks` of the edition shape files among ``shape_files``."""
+    found = tuple((str(p), p.stat().st_mtime) for p in shape_files if p.match(_EDITION_FILES) and p.is_file())
+    return _edition_marks(found) if found else ({}, {})
+
+
+def edition_rules(store: ox.Store, graph: str, results: list[Result],
+                  shape_files: Sequence[Path] = ()) -> list[Result]:
+    """``results`` without those of a rule that does not hold for the edition of their focus
+    instance: of an edition's own rule shape (``shape_files``: the shapes in use) on an instance of
+    another, of a 2002 rule the instance's edition has otherwise or lacks, and those that hold an
+    instance of another edition than 2002 to a 2002 attribute its edition does not give its entity."""
+    own_shape, not_for = edition_marks(shape_files)
     own, others = _editions(store, graph)
-    if own == SHIPPED and not others:
+    if own == SHIPPED and not others and not own_shape:
         return results
     kept = []
     for r in results:
         edition = others.get(r.focus, own)
+        if r.shape is not None and (own_shape.get(r.shape, edition) != edition
+                                    or edition in not_for.get(r.shape, frozenset())):
+            continue
         if edition == SHIPPED or not _absent_attribute(store, graph, r, edition):
             kept.append(r)
     return kept
