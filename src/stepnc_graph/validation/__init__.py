@@ -11,7 +11,7 @@ Shapes come from ``shapes/`` (generated ``*.ttl`` and the hand-written
 ``shapes/process/*.ttl``; left out with ``iso_shapes=False``) plus any
 ``extra_shapes`` files; they are compiled once per process (:mod:`.engine`)
 and run by the store. Loader diagnostics of the files loaded here are results
-too (severity Violation).
+too, of the diagnostic's own severity (an error a Violation, a warning a Warning).
 """
 
 from __future__ import annotations
