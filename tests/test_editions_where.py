@@ -126,3 +126,40 @@ def test_a_store_holding_both_editions_checks_each_by_its_own(tmp_path: Path) ->
         ("ball_endmills_fdis2001.stp", 10, SHAPES + "ball_endmill-wr2"),
         ("ball_endmills_fdis2001.stp", 10, SHAPES + "fdis2001.ball_endmill-wr4"),
     ]
+
+
+def test_ontology_stats_lists_each_edition_rule_and_what_checks_it() -> None:
+    """`ontology stats` lists per edition the rules that differ from 2002: the shape that checks
+    each on the edition's instances (the ones in shapes/edition_fdis2001.ttl), or why none does."""
+    import json
+
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    result = CliRunner().invoke(main, ["ontology", "stats", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.output)["edition_rules"]
+    assert [(r["edition"], r["rule"], r["kind"], r["shape"], r["shipped_rule_withheld"]) for r in rows] == [
+        ("fdis2001", "back_boring.wr1", "edition only", "shapes:fdis2001.back_boring-wr1", False),
+        ("fdis2001", "ball_endmill.wr4", "differs", "shapes:fdis2001.ball_endmill-wr4", True),
+        ("fdis2001", "bullnose_endmill.wr1", "differs", "shapes:fdis2001.bullnose_endmill-wr1", True),
+        ("fdis2001", "definitional_representation.wr1", "edition only", None, False),
+        ("fdis2001", "milling_machining_operation.wr1", "edition only",
+         "shapes:fdis2001.milling_machining_operation-wr1", False),
+        ("fdis2001", "trimmed_curve.wr1", "differs", None, False),
+        ("fdis2001", "trimmed_curve.wr2", "differs", None, False),
+        ("fdis2001", "trimmed_curve.wr3", "edition only", None, False)]
+    reasons = {r["rule"]: r["reason"] for r in rows if r["shape"] is None}
+    assert reasons == {
+        "definitional_representation.wr1": "TYPEOF test for parametric_representation_context, which is not an "
+                                           "entity (in the fdis2001 schemas)",
+        "trimmed_curve.wr1": "TYPEOF test for parameter_value, which is not an entity (in the fdis2001 schemas)",
+        "trimmed_curve.wr2": "TYPEOF test for parameter_value, which is not an entity (in the fdis2001 schemas)",
+        "trimmed_curve.wr3": "TYPEOF test for parameter, which is not an entity (in the fdis2001 schemas)"}
+    shipped = (ROOT / "shapes" / "edition_fdis2001.ttl").read_text()
+    assert all((r["shape"].removeprefix("shapes:") + "\n") in shipped for r in rows if r["shape"])
+    text = CliRunner().invoke(main, ["ontology", "stats"]).output
+    assert "WHERE rules of edition fdis2001 that differ from 2002: 8, 4 translated (shapes/edition_fdis2001.ttl)" in text
+    assert ("  ball_endmill.wr4 (differs): checked by shapes:fdis2001.ball_endmill-wr4; the 2002 rule is not "
+            "applied to its instances") in text
