@@ -163,3 +163,44 @@ def test_ontology_stats_lists_each_edition_rule_and_what_checks_it() -> None:
     assert "WHERE rules of edition fdis2001 that differ from 2002: 8, 4 translated (shapes/edition_fdis2001.ttl)" in text
     assert ("  ball_endmill.wr4 (differs): checked by shapes:fdis2001.ball_endmill-wr4; the 2002 rule is not "
             "applied to its instances") in text
+
+
+def test_a_users_own_shapes_say_that_2001_instances_were_checked_by_them_only(tmp_path: Path) -> None:
+    """--no-iso-shapes --shapes X without shapes/edition_fdis2001.ttl: the 2001 instances are checked
+    by X's rules (here the 2002 milling tool rules, whose WR4 a 2001 ball end mill does not break)
+    and the report says so, in text, JSON and Turtle; with the edition file among the shapes, or
+    with the ISO shapes in use, the 2001 rule finds #10 and there is nothing to note."""
+    import json
+
+    from click.testing import CliRunner
+    from rdflib import RDFS, Graph
+
+    from stepnc_graph.cli import main
+
+    mine = tmp_path / "our_tool_rules.ttl"
+    shipped = (ROOT / "shapes" / "milling_tool_schema.ttl").read_text()
+    mine.write_text(shipped.replace(SHAPES, "https://example.org/our-shapes#"))  # ours, beside the shipped ones
+    assert mine.read_text() != shipped
+    edition_file = ROOT / "shapes" / "edition_fdis2001.ttl"
+    report = sg.validate([BALL_2001], iso_shapes=False, extra_shapes=[mine])
+    graph = "https://w3id.org/stepnc-graph/data/ball_endmills_fdis2001.stp"
+    assert report.notes == [
+        f"{graph}: the instances of edition fdis2001 were checked by the given shapes only, not by that edition's own "
+        "WHERE rules (shapes/edition_fdis2001.ttl, part of the ISO 14649 shapes, is not among them)"]
+    assert not any(r.rule and r.rule.startswith("ball_endmill WR4") for r in report.results)
+    assert report.to_text().splitlines()[-1] == "note: " + report.notes[0]
+    assert json.loads(report.to_json())["notes"] == report.notes
+    turtle = Graph().parse(data=report.to_turtle(), format="turtle")
+    assert [str(o) for o in turtle.objects(None, RDFS.comment)] == report.notes
+    cli = CliRunner().invoke(main, ["validate", "--no-iso-shapes", "--shapes", str(mine), "--format", "json",
+                                    str(BALL_2001)])
+    assert json.loads(cli.output)["notes"] == report.notes
+    for checked in (sg.validate([BALL_2001], iso_shapes=False, extra_shapes=[mine, edition_file]),
+                    sg.validate([BALL_2001], extra_shapes=[mine])):
+        assert checked.notes == []
+        assert [r.p21_id for r in checked.results if r.rule and r.rule.startswith("ball_endmill WR4")] == [10]
+    assert sg.validate([BALL_2002], iso_shapes=False, extra_shapes=[mine]).notes == []
+    mixed = sg.validate([FIXTURES / "plate_fdis2001_mixed.stp"], edition="2002", iso_shapes=False,
+                        extra_shapes=[mine])
+    # read as 2002: CENTER_DRILL #50 and TOOL_DIMENSION #52, #53 are fdis2001 instances (#51 is in the 2002 form)
+    assert [n.split(": ", 1)[1].split(" were")[0] for n in mixed.notes] == ["3 instance(s) of edition fdis2001"]
