@@ -77,6 +77,7 @@ def test_the_2001_rules_are_shapes_of_their_own_and_the_2002_ones_they_differ_fr
         ("fdis2001.bullnose_endmill-wr1", "edition", "fdis2001"),
         ("fdis2001.bullnose_endmill-wr1", "replaces", "bullnose_endmill-wr1"),
         ("fdis2001.milling_machining_operation-wr1", "edition", "fdis2001"),
+        ("fdis2001.trimmed_curve-wr3", "edition", "fdis2001"),  # its evident intent (a schema defect)
     ]
     text = (ROOT / "shapes" / "edition_fdis2001.ttl").read_text(encoding="utf-8")
     # compiled against the terms the 2001 loader writes: the shared body, the edition's own angle
@@ -149,18 +150,21 @@ def test_ontology_stats_lists_each_edition_rule_and_what_checks_it() -> None:
          "shapes:fdis2001.milling_machining_operation-wr1", False),
         ("fdis2001", "trimmed_curve.wr1", "differs", None, False),
         ("fdis2001", "trimmed_curve.wr2", "differs", None, False),
-        ("fdis2001", "trimmed_curve.wr3", "edition only", None, False)]
-    reasons = {r["rule"]: r["reason"] for r in rows if r["shape"] is None}
+        ("fdis2001", "trimmed_curve.wr3", "edition only", "shapes:fdis2001.trimmed_curve-wr3", False)]
+    reasons = {r["rule"]: r["reason"] for r in rows if r["reason"]}
+    never = "schema defect: as written it is FALSE for every instance: TYPEOF gives only the names of types the " \
+            "schemas declare (and built-in ones), '{}' names none of them, and the rule admits nothing else; "
     assert reasons == {
-        "definitional_representation.wr1": "TYPEOF test for parametric_representation_context, which is not an "
-                                           "entity (in the fdis2001 schemas)",
-        "trimmed_curve.wr1": "TYPEOF test for parameter_value, which is not an entity (in the fdis2001 schemas)",
-        "trimmed_curve.wr2": "TYPEOF test for parameter_value, which is not an entity (in the fdis2001 schemas)",
-        "trimmed_curve.wr3": "TYPEOF test for parameter, which is not an entity (in the fdis2001 schemas)"}
+        "definitional_representation.wr1": never.format("parametric_representation_context")
+        + "no evident intent to check instead",
+        "trimmed_curve.wr1": "TYPEOF test for parameter_value, which is not an entity",
+        "trimmed_curve.wr2": "TYPEOF test for parameter_value, which is not an entity",
+        "trimmed_curve.wr3": never.format("parameter") + "its evident intent checked: master_representation is "
+                                                         ".PARAMETER."}
     shipped = (ROOT / "shapes" / "edition_fdis2001.ttl").read_text()
     assert all((r["shape"].removeprefix("shapes:") + "\n") in shipped for r in rows if r["shape"])
     text = CliRunner().invoke(main, ["ontology", "stats"]).output
-    assert "WHERE rules of edition fdis2001 that differ from 2002: 8, 4 translated (shapes/edition_fdis2001.ttl)" in text
+    assert "WHERE rules of edition fdis2001 that differ from 2002: 8, 5 translated (shapes/edition_fdis2001.ttl)" in text
     assert ("  ball_endmill.wr4 (differs): checked by shapes:fdis2001.ball_endmill-wr4; the 2002 rule is not "
             "applied to its instances") in text
 
@@ -204,3 +208,18 @@ def test_a_users_own_shapes_say_that_2001_instances_were_checked_by_them_only(tm
                         extra_shapes=[mine])
     # read as 2002: CENTER_DRILL #50 and TOOL_DIMENSION #52, #53 are fdis2001 instances (#51 is in the 2002 form)
     assert [n.split(": ", 1)[1].split(" were")[0] for n in mixed.notes] == ["3 instance(s) of edition fdis2001"]
+
+
+def test_a_2001_rule_no_instance_can_satisfy_is_checked_by_its_evident_intent() -> None:
+    """2001 trimmed_curve WR3, 'parameter' IN TYPEOF(SELF.master_representation): TYPEOF of an
+    enumeration value names its type, never an item, so the rule is FALSE for every curve (a
+    schema defect); its evident intent, master_representation = .PARAMETER. (the edition's trims are
+    parameter values, its Annex example trims so), is checked instead and the result says so.
+    2002 has no such rule; 2001 definitional_representation WR1 names an entity no schema declares
+    and has no intent to check: not checked, listed (ontology stats)."""
+    curves = FIXTURES / "trimmed_curves_fdis2001.stp"
+    [finding] = sg.validate([curves]).results
+    assert (finding.p21_id, finding.severity, finding.shape) == (9, "Violation", SHAPES + "fdis2001.trimmed_curve-wr3")
+    assert finding.message.startswith("trimmed_curve WR3 (schema defect, its intent checked: master_representation "
+                                      "is .PARAMETER.)")
+    assert sg.validate([curves], edition="2002").results == []

@@ -142,7 +142,8 @@ def _print_edition_rules(rules: list[Any]) -> None:
                   f"{sum(r.shape is not None for r in mine)} translated (shapes/edition_{escape(edition)}.ttl)")
         for r in mine:
             withheld = "; the 2002 rule is not applied to its instances" if r.shipped_withheld else ""
-            what = f"checked by {r.shape}" if r.shape else f"not translated: {r.reason}"
+            what = (f"checked by {r.shape}{f' ({r.reason})' if r.reason else ''}" if r.shape else
+                    f"not translated: {r.reason}")
             out.print(f"  {escape(r.rule)} ({escape(r.kind)}): {escape(what)}{escape(withheld)}")
 
 

@@ -141,7 +141,8 @@ class EditionRule:
     """What becomes of one WHERE rule that differs between an edition and 2002 (:class:`RuleDifference`):
     its ``kind`` (``differs``, ``edition only``, ``2002 only``), the edition's shape that checks it on
     the edition's instances (None: not translated, or the edition has no such rule) with ``reason``
-    why not, and whether the 2002 rule's shape is kept off those instances (``shapes:notForEdition``)."""
+    why not (or, for a schema defect whose intent the shape checks, what it checks), and whether the
+    2002 rule's shape is kept off those instances (``shapes:notForEdition``)."""
 
     edition: str
     entity: str
@@ -176,8 +177,7 @@ def edition_rules(edition: str, catalog: Catalog, own: SchemaModel, shipped: Sch
                                    withheld))
             continue
         shape = f"shapes:{edition}.{d.entity}-{d.label.lower()}" if c.translated else None
-        reason = f"{c.reason} (in the {edition} schemas)" if c.reason and not c.translated else c.reason
-        out.append(EditionRule(edition, d.entity, d.label, d.kind, shape, reason, withheld))
+        out.append(EditionRule(edition, d.entity, d.label, d.kind, shape, c.reason, withheld))
     return out
 
 
