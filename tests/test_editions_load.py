@@ -112,44 +112,93 @@ def test_validate_applies_the_2001_edition(tmp_path: Path) -> None:
 
 
 def test_2002_form_instance_in_a_2001_file_is_found_at_its_id(tmp_path: Path) -> None:
+    """An instance the file's edition cannot read but another edition reads exactly is evidence,
+    not a diagnostic: in the load result (entity, edition, #ids, lines), the graph's provenance and
+    info; validate finds nothing to report."""
     first, text, second, again = round_trip(MIXED, tmp_path)
     assert first.edition.edition == "fdis2001"  # type: ignore[union-attr]
-    assert [(d.code, d.severity, d.p21_id, d.line) for d in first.diagnostics] == [
-        ("P21-EDITION-MIX", "warning", 51, 40)]
-    assert "is the 2002 form" in first.diagnostics[0].message and first.raw == 0
+    assert first.diagnostics == [] and first.raw == 0
+    [form] = first.in_other_editions
+    assert (form.entity, form.edition, form.ids, form.lines) == ("BORING_TOOL", "2002", (51,), (40,))
+    assert form.file_has.startswith("5 (") and form.form.startswith("6 (") and "retract_movement_forbidden" in form.form
     assert first.other_editions == {51: "2002"}
+    assert first.asdict()["edition"]["instances_in_other_editions"] == [form.asdict()]
+    assert form.asdict()["ids"] == ["#51"] and form.asdict()["lines"] == [40]
     assert "#51=BORING_TOOL(#53,1,.RIGHT.,.T.,$,.F.);" in text.decode() and text == again
-    assert [(d.code, d.p21_id) for d in second.diagnostics] == [("P21-EDITION-MIX", 51)]
-    report = sg.validate([MIXED])
-    assert [(r.p21_id, r.component) for r in report.results] == [(51, "loader:P21-EDITION-MIX")]
+    assert second.diagnostics == [] and second.other_editions == {51: "2002"}
+    assert sg.validate([MIXED]).results == []
+
+
+def test_instances_in_another_editions_form_are_in_provenance_info_and_the_load_summary(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [MIXED])
+    evidence = {str(x["v"].value) for x in store.query(
+        f"SELECT ?v WHERE {{ GRAPH <{r.graph}> {{ <{r.graph}> <{P21_NS}editionEvidence> ?v }} }}")}
+    assert "1 instance(s) in the 2002 form: BORING_TOOL #51" in evidence
+    [row] = sg.info(store)
+    assert "1 instance(s) in the 2002 form: BORING_TOOL #51" in row.edition_evidence
+    result = CliRunner().invoke(main, ["load", "--store", str(tmp_path / "s"), str(MIXED)])
+    assert result.exit_code == 0, result.output
+    [line] = [x for x in result.output.splitlines() if x.startswith("  edition ")]
+    assert line.startswith("  edition fdis2001 (chosen by content: ") and line.endswith(
+        "); 1 instance(s) in the 2002 form: BORING_TOOL #51")
 
 
 def test_edition_option_overrides_what_the_file_shows(tmp_path: Path) -> None:
     first, text, _, _ = round_trip(PLATE, tmp_path, edition="2002")
     assert (first.edition.edition, first.edition.chosen_by) == ("2002", "option")  # type: ignore[union-attr]
-    assert [(d.code, d.p21_id) for d in first.diagnostics] == [
-        ("P21-EDITION-MIX", 50), ("P21-EDITION-MIX", 51), ("P21-EDITION-MIX", 52), ("P21-EDITION-MIX", 53)]
+    assert first.diagnostics == []
+    assert [(f.entity, f.edition, f.ids) for f in first.in_other_editions] == [
+        ("CENTER_DRILL", "fdis2001", (50,)), ("BORING_TOOL", "fdis2001", (51,)),
+        ("TOOL_DIMENSION", "fdis2001", (52, 53))]  # in file order
     assert "#50=CENTER_DRILL(#52,2,.RIGHT.,.F.,$);" in text.decode()
     with pytest.raises(ValueError, match="unknown edition"):
         sg.load(sg.open_store(memory=True), [PLATE], edition="1999")
 
 
+def test_other_forms_name_the_edition_they_are_from(tmp_path: Path) -> None:
+    """A CUTTING_COMPONENT with 4 parameters is in no edition read here (each has 5) but in the
+    published one (AP238 ARM): still a diagnostic, the instance raw and written back as it was,
+    and the message says which form it is."""
+    text = PLATE.read_text()
+    body = text.replace("ENDSEC;\nEND-ISO-10303-21;", "#90=CUTTING_COMPONENT(80.000,$,$,$);\nENDSEC;\nEND-ISO-10303-21;")
+    assert body != text
+    (tmp_path / "in").mkdir()
+    path = tmp_path / "in" / "plate_cutting_component.stp"
+    path.write_text(body)
+    first, exported, _, again = round_trip(path, tmp_path)
+    [d] = first.diagnostics
+    assert (d.code, d.severity, d.p21_id, first.raw) == ("P21-ARGUMENT-COUNT", "error", 90, 1)
+    assert d.message.endswith("found 4; 4 parameters (tool_functional_length, its_material, expected_tool_life, "
+                              "its_technology) is the form of ISO 14649-10 as published (2004), an edition "
+                              "stepnc-graph does not read (recorded in the merged AP238 ARM EXPRESS of 2006); kept raw")
+    assert "#90=CUTTING_COMPONENT(80.000,$,$,$);" in exported.decode() and exported == again
+    [other] = sg.load(sg.open_store(memory=True), [path], edition="2002")
+    assert [x.message for x in other.diagnostics] == [d.message]
+
+
 # -- the corpus ------------------------------------------------------------------------------------
 
-#: per corpus file: the edition it is read in and its diagnostics (code, #id), strict and lenient alike
-CORPUS = {
-    # CUTTING_COMPONENT with 4 parameters: 5 in every edition we have (NIST's copy of this example
-    # adds the fifth); the file's own mistake
-    "EXAMPLE1_FDIS_14649-11_2001.stp": ("fdis2001", [("P21-ARGUMENT-COUNT", i) for i in (125, 126, 127)]),
-    "EXAMPLE2_FDIS_14649-11_2001.stp": ("fdis2001", [("P21-EDITION-MIX", 244), ("P21-EDITION-MIX", 268)]),
-    "EXAMPLE3_FDIS_14649-11_2001.stp": ("fdis2001", []),
-    "nist_toolkit_ex1.stp": ("2002", [("P21-UNKNOWN-ENTITY", 42)]),  # BIDIRECTIONAL_MILLING: in no edition
+#: per corpus file: the edition it is read in, its diagnostics (code, #id) and its instances read in
+#: another edition (entity, edition, #ids), strict and lenient alike
+CORPUS: dict[str, tuple[str, list[tuple[str, int]], list[tuple[str, str, tuple[int, ...]]]]] = {
+    # CUTTING_COMPONENT with 4 parameters: the form of the published editions (AP238 ARM), which
+    # no edition read here has (see CUTTING_COMPONENT in test_other_forms_name_the_edition_they_are_from)
+    "EXAMPLE1_FDIS_14649-11_2001.stp": ("fdis2001", [("P21-ARGUMENT-COUNT", i) for i in (125, 126, 127)], []),
+    "EXAMPLE2_FDIS_14649-11_2001.stp": ("fdis2001", [], [("BORING_TOOL", "2002", (244, 268))]),
+    "EXAMPLE3_FDIS_14649-11_2001.stp": ("fdis2001", [], []),
+    "nist_toolkit_ex1.stp": ("2002", [("P21-UNKNOWN-ENTITY", 42)], []),  # BIDIRECTIONAL_MILLING: in no edition
     "nist_toolkit_ex1E.stp": ("2002", [("P21-UNKNOWN-ENTITY", i) for i in (
         906, 1226, 1426, 1626, 1826, 2016, 2216, 2416, 2616, 2816, 3016, 3216, 3416, 3616, 3816, 4016, 4216, 4416,
-        4616, 4816)]),  # HELIX: in no edition
-    "ufsc_Peca_Defesa.p21": ("2002", [("P21-EDITION-MIX", 65)]),  # CENTER_DRILL, the 2001 name
-    "ufsc_TesteFinalUNBLAB.p21": ("2002", [("P21-EDITION-MIX", i) for i in (131, 180, 266, 300, 334, 368, 402, 436)]),
-    "ufsc_furo.p21": ("2002", [("P21-EDITION-MIX", 28)]),
+        4616, 4816)], []),  # HELIX: in no edition
+    "ufsc_Peca_Defesa.p21": ("2002", [], [("CENTER_DRILL", "fdis2001", (65,))]),  # the 2001 name
+    "ufsc_TesteFinalUNBLAB.p21": ("2002", [], [("CENTER_DRILL", "fdis2001", (131, 180, 266, 300, 334, 368, 402,
+                                                                            436))]),
+    "ufsc_furo.p21": ("2002", [], [("CENTER_DRILL", "fdis2001", (28,))]),
 }
 
 
@@ -158,13 +207,15 @@ CORPUS = {
 @pytest.mark.parametrize("name", sorted(CORPUS))
 def test_corpus_edition_diagnostics_and_byte_exact_round_trip(shared: Path, name: str, lenient: bool,
                                                               tmp_path: Path) -> None:
-    edition, expected = CORPUS[name]
+    edition, expected, other = CORPUS[name]
     first, text, second, again = round_trip(shared / "corpus" / "milling" / name, tmp_path, lenient=lenient)
     assert first.edition.edition == edition  # type: ignore[union-attr]
     found = [(d.code, d.p21_id) for d in first.diagnostics]
     assert sorted(found, key=lambda x: (x[1] or 0)) == expected
+    assert [(f.entity, f.edition, f.ids) for f in first.in_other_editions] == other
     assert text == again
     assert sorted((d.code, d.p21_id) for d in second.diagnostics) == sorted(expected)
+    assert [(f.entity, f.edition, f.ids) for f in second.in_other_editions] == other
 
 
 # -- rules no instance can satisfy ---------------------------------------------------------------

@@ -77,6 +77,7 @@ def test_the_2001_rules_are_shapes_of_their_own_and_the_2002_ones_they_differ_fr
         ("fdis2001.bullnose_endmill-wr1", "edition", "fdis2001"),
         ("fdis2001.bullnose_endmill-wr1", "replaces", "bullnose_endmill-wr1"),
         ("fdis2001.milling_machining_operation-wr1", "edition", "fdis2001"),
+        ("fdis2001.trimmed_curve-wr3", "edition", "fdis2001"),  # its evident intent (a schema defect)
     ]
     text = (ROOT / "shapes" / "edition_fdis2001.ttl").read_text(encoding="utf-8")
     # compiled against the terms the 2001 loader writes: the shared body, the edition's own angle
@@ -126,3 +127,99 @@ def test_a_store_holding_both_editions_checks_each_by_its_own(tmp_path: Path) ->
         ("ball_endmills_fdis2001.stp", 10, SHAPES + "ball_endmill-wr2"),
         ("ball_endmills_fdis2001.stp", 10, SHAPES + "fdis2001.ball_endmill-wr4"),
     ]
+
+
+def test_ontology_stats_lists_each_edition_rule_and_what_checks_it() -> None:
+    """`ontology stats` lists per edition the rules that differ from 2002: the shape that checks
+    each on the edition's instances (the ones in shapes/edition_fdis2001.ttl), or why none does."""
+    import json
+
+    from click.testing import CliRunner
+
+    from stepnc_graph.cli import main
+
+    result = CliRunner().invoke(main, ["ontology", "stats", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.output)["edition_rules"]
+    assert [(r["edition"], r["rule"], r["kind"], r["shape"], r["shipped_rule_withheld"]) for r in rows] == [
+        ("fdis2001", "back_boring.wr1", "edition only", "shapes:fdis2001.back_boring-wr1", False),
+        ("fdis2001", "ball_endmill.wr4", "differs", "shapes:fdis2001.ball_endmill-wr4", True),
+        ("fdis2001", "bullnose_endmill.wr1", "differs", "shapes:fdis2001.bullnose_endmill-wr1", True),
+        ("fdis2001", "definitional_representation.wr1", "edition only", None, False),
+        ("fdis2001", "milling_machining_operation.wr1", "edition only",
+         "shapes:fdis2001.milling_machining_operation-wr1", False),
+        ("fdis2001", "trimmed_curve.wr1", "differs", None, False),
+        ("fdis2001", "trimmed_curve.wr2", "differs", None, False),
+        ("fdis2001", "trimmed_curve.wr3", "edition only", "shapes:fdis2001.trimmed_curve-wr3", False)]
+    reasons = {r["rule"]: r["reason"] for r in rows if r["reason"]}
+    never = "schema defect: as written it is FALSE for every instance: TYPEOF gives only the names of types the " \
+            "schemas declare (and built-in ones), '{}' names none of them, and the rule admits nothing else; "
+    assert reasons == {
+        "definitional_representation.wr1": never.format("parametric_representation_context")
+        + "no evident intent to check instead",
+        "trimmed_curve.wr1": "TYPEOF test for parameter_value, which is not an entity",
+        "trimmed_curve.wr2": "TYPEOF test for parameter_value, which is not an entity",
+        "trimmed_curve.wr3": never.format("parameter") + "its evident intent checked: master_representation is "
+                                                         ".PARAMETER."}
+    shipped = (ROOT / "shapes" / "edition_fdis2001.ttl").read_text()
+    assert all((r["shape"].removeprefix("shapes:") + "\n") in shipped for r in rows if r["shape"])
+    text = CliRunner().invoke(main, ["ontology", "stats"]).output
+    assert "WHERE rules of edition fdis2001 that differ from 2002: 8, 5 translated (shapes/edition_fdis2001.ttl)" in text
+    assert ("  ball_endmill.wr4 (differs): checked by shapes:fdis2001.ball_endmill-wr4; the 2002 rule is not "
+            "applied to its instances") in text
+
+
+def test_a_users_own_shapes_say_that_2001_instances_were_checked_by_them_only(tmp_path: Path) -> None:
+    """--no-iso-shapes --shapes X without shapes/edition_fdis2001.ttl: the 2001 instances are checked
+    by X's rules (here the 2002 milling tool rules, whose WR4 a 2001 ball end mill does not break)
+    and the report says so, in text, JSON and Turtle; with the edition file among the shapes, or
+    with the ISO shapes in use, the 2001 rule finds #10 and there is nothing to note."""
+    import json
+
+    from click.testing import CliRunner
+    from rdflib import RDFS, Graph
+
+    from stepnc_graph.cli import main
+
+    mine = tmp_path / "our_tool_rules.ttl"
+    shipped = (ROOT / "shapes" / "milling_tool_schema.ttl").read_text()
+    mine.write_text(shipped.replace(SHAPES, "https://example.org/our-shapes#"))  # ours, beside the shipped ones
+    assert mine.read_text() != shipped
+    edition_file = ROOT / "shapes" / "edition_fdis2001.ttl"
+    report = sg.validate([BALL_2001], iso_shapes=False, extra_shapes=[mine])
+    graph = "https://w3id.org/stepnc-graph/data/ball_endmills_fdis2001.stp"
+    assert report.notes == [
+        f"{graph}: the instances of edition fdis2001 were checked by the given shapes only, not by that edition's own "
+        "WHERE rules (shapes/edition_fdis2001.ttl, part of the ISO 14649 shapes, is not among them)"]
+    assert not any(r.rule and r.rule.startswith("ball_endmill WR4") for r in report.results)
+    assert report.to_text().splitlines()[-1] == "note: " + report.notes[0]
+    assert json.loads(report.to_json())["notes"] == report.notes
+    turtle = Graph().parse(data=report.to_turtle(), format="turtle")
+    assert [str(o) for o in turtle.objects(None, RDFS.comment)] == report.notes
+    cli = CliRunner().invoke(main, ["validate", "--no-iso-shapes", "--shapes", str(mine), "--format", "json",
+                                    str(BALL_2001)])
+    assert json.loads(cli.output)["notes"] == report.notes
+    for checked in (sg.validate([BALL_2001], iso_shapes=False, extra_shapes=[mine, edition_file]),
+                    sg.validate([BALL_2001], extra_shapes=[mine])):
+        assert checked.notes == []
+        assert [r.p21_id for r in checked.results if r.rule and r.rule.startswith("ball_endmill WR4")] == [10]
+    assert sg.validate([BALL_2002], iso_shapes=False, extra_shapes=[mine]).notes == []
+    mixed = sg.validate([FIXTURES / "plate_fdis2001_mixed.stp"], edition="2002", iso_shapes=False,
+                        extra_shapes=[mine])
+    # read as 2002: CENTER_DRILL #50 and TOOL_DIMENSION #52, #53 are fdis2001 instances (#51 is in the 2002 form)
+    assert [n.split(": ", 1)[1].split(" were")[0] for n in mixed.notes] == ["3 instance(s) of edition fdis2001"]
+
+
+def test_a_2001_rule_no_instance_can_satisfy_is_checked_by_its_evident_intent() -> None:
+    """2001 trimmed_curve WR3, 'parameter' IN TYPEOF(SELF.master_representation): TYPEOF of an
+    enumeration value names its type, never an item, so the rule is FALSE for every curve (a
+    schema defect); its evident intent, master_representation = .PARAMETER. (the edition's trims are
+    parameter values, its Annex example trims so), is checked instead and the result says so.
+    2002 has no such rule; 2001 definitional_representation WR1 names an entity no schema declares
+    and has no intent to check: not checked, listed (ontology stats)."""
+    curves = FIXTURES / "trimmed_curves_fdis2001.stp"
+    [finding] = sg.validate([curves]).results
+    assert (finding.p21_id, finding.severity, finding.shape) == (9, "Violation", SHAPES + "fdis2001.trimmed_curve-wr3")
+    assert finding.message.startswith("trimmed_curve WR3 (schema defect, its intent checked: master_representation "
+                                      "is .PARAMETER.)")
+    assert sg.validate([curves], edition="2002").results == []

@@ -384,3 +384,25 @@ def test_the_shipped_checks_leave_the_position_triples_out() -> None:
     from stepnc_graph.validation.throwaway import reads_positions
 
     assert not reads_positions(compile_shapes(shape_files()).checks)
+
+
+def test_a_loader_warning_keeps_its_severity_and_does_not_fail_the_program(tmp_path: Path) -> None:
+    """A program whose only finding is a loader warning (an EXPRESS remark between instances,
+    skipped) passes: the result is a Warning, as the loader said, not a Violation; an error stays
+    a Violation."""
+    clean = ROOT / "examples" / "shaft_two_setups.stp"
+    text = clean.read_text()
+    first = text.index("\n#") + 1
+    remarked = tmp_path / "remarked.stp"
+    remarked.write_text(text[:first] + "(* a remark the loader skips *)\n" + text[first:])
+    before = {(r.p21_id, r.severity, r.value) for r in validate([clean]).results}
+    report = validate([remarked])
+    loader = [(r.component, r.severity) for r in report.results if r.component.startswith("loader:")]
+    assert loader == [("loader:P21-EXPRESS-REMARK", "Warning")], report.to_text()
+    assert {(r.p21_id, r.severity, r.value) for r in report.results if not r.component.startswith("loader:")} == before
+    assert report.passes and _cli("validate", str(remarked)).exit_code == 0
+    turtle = Graph().parse(data=_cli("validate", "--format", "turtle", str(remarked)).output, format="turtle")
+    assert set(turtle.objects(None, SH.resultSeverity)) == {SH.Warning}
+    unknown = tmp_path / "unknown.stp"
+    unknown.write_text(text[:first] + "#99999=NO_SUCH_ENTITY(1);\n" + text[first:])
+    assert ("loader:P21-UNKNOWN-ENTITY", "Violation") in {(r.component, r.severity) for r in validate([unknown]).results}

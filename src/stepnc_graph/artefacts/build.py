@@ -11,8 +11,10 @@ commands read instead of the EXPRESS, see :mod:`stepnc_graph.schema.cache`),
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from stepnc_graph.generators.registry import GENERATORS, Inputs
 from stepnc_graph.mapping.plans import Plans
@@ -20,6 +22,10 @@ from stepnc_graph.schema import cache, editions
 from stepnc_graph.schema.catalog import EDITIONS, load_catalog_model
 from stepnc_graph.schema.view import SchemaModel
 from stepnc_graph.validation import compiled
+
+if TYPE_CHECKING:
+    from stepnc_graph.generators.edition_shapes import EditionNaming
+    from stepnc_graph.schema.catalog import Catalog
 
 
 @dataclass(frozen=True)
@@ -52,6 +58,34 @@ def generate(express_directory: Path | None = None) -> dict[str, str]:
     return out
 
 
+@dataclass(frozen=True)
+class EditionSource:
+    """An edition found beside the shipped one, read for the build: its catalogue and model, the
+    plans of its own model, the plans its loader reads with, and the naming its shapes use."""
+
+    edition: str
+    catalog: Catalog
+    model: SchemaModel
+    own: Plans
+    plans: Plans
+    naming: EditionNaming
+
+
+def edition_sources(express_directory: Path, base: Plans) -> Iterator[EditionSource]:
+    """Each other edition with a catalogue beside the shipped one (``ontology/editions/<edition>/``)."""
+    from stepnc_graph.generators import edition_shapes
+    from stepnc_graph.mapping.editions import build_edition_plans
+
+    for edition in EDITIONS:
+        directory = express_directory.parent / "editions" / edition
+        if not (directory / "schemas.toml").is_file():
+            continue
+        catalog, model = load_catalog_model(directory)
+        own = Plans(model, base.n)
+        plans = build_edition_plans(edition, base, own)
+        yield EditionSource(edition, catalog, model, own, plans, edition_shapes.edition_naming(base.n, own, plans))
+
+
 def edition_files(express_directory: Path, base: Plans) -> tuple[dict[str, str], list[tuple[str, str]]]:
     """Per other edition found beside the shipped one: its compiled model and plans
     (``ontology/editions/<edition>.compiled-model.json``, read by
@@ -60,25 +94,18 @@ def edition_files(express_directory: Path, base: Plans) -> tuple[dict[str, str],
     2002 as shapes (``shapes/edition_<edition>.ttl``, :mod:`stepnc_graph.generators.edition_shapes`);
     and the (edition class, 2002 class) pairs the shapes' class hierarchy adds."""
     from stepnc_graph.generators import edition_shapes
-    from stepnc_graph.mapping.editions import (COMPILED, RENAMED, build_edition_plans, counterpart_classes,
-                                               edition_turtle)
+    from stepnc_graph.mapping.editions import COMPILED, RENAMED, counterpart_classes, edition_turtle
 
     out: dict[str, str] = {}
     pairs: list[tuple[str, str]] = []
-    for edition in EDITIONS:
-        directory = express_directory.parent / "editions" / edition
-        if not (directory / "schemas.toml").is_file():
-            continue
-        catalog, model = load_catalog_model(directory)
-        own = Plans(model, base.n)
-        out["ontology/" + COMPILED.format(edition=edition)] = cache.dumps(catalog, model, own.dump(),
-                                                                         cache.express_digest(directory))
-        plans = build_edition_plans(edition, base, own)
-        out[f"ontology/edition_{edition}.ttl"] = edition_turtle(edition, plans, base)
-        naming = edition_shapes.edition_naming(base.n, own, plans)
-        out["shapes/" + edition_shapes.FILE.format(edition=edition)] = edition_shapes.edition_shapes(
-            edition, catalog, model, base.model, naming, RENAMED.get(edition, {}))
-        pairs += counterpart_classes(edition, plans, base)
+    for e in edition_sources(express_directory, base):
+        directory = express_directory.parent / "editions" / e.edition
+        out["ontology/" + COMPILED.format(edition=e.edition)] = cache.dumps(e.catalog, e.model, e.own.dump(),
+                                                                           cache.express_digest(directory))
+        out[f"ontology/edition_{e.edition}.ttl"] = edition_turtle(e.edition, e.plans, base)
+        out["shapes/" + edition_shapes.FILE.format(edition=e.edition)] = edition_shapes.edition_shapes(
+            e.edition, e.catalog, e.model, base.model, e.naming, RENAMED.get(e.edition, {}))
+        pairs += counterpart_classes(e.edition, e.plans, base)
     return out, pairs
 
 

@@ -9,11 +9,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rdflib import Graph, URIRef, Variable
 
 from stepnc_graph.schema.catalog import load_catalog_model
+
+if TYPE_CHECKING:
+    from stepnc_graph.generators.edition_shapes import EditionRule
 
 _COUNT = """
 PREFIX p21: <https://w3id.org/stepnc-graph/p21#>
@@ -112,3 +115,18 @@ def rule_stats(root: Path) -> list[RuleStats]:
                                  tuple((f"{r.owner}.{r.label}", (r.reason or "").removeprefix(DEFECT))
                                        for r in rules if (r.reason or "").startswith(DEFECT))))
     return out
+
+
+def edition_rule_stats(root: Path) -> list[EditionRule]:
+    """Per edition beside the shipped one, each WHERE rule that differs from 2002 (as ``ontology
+    build`` compares them) and what became of it: translated into ``shapes/edition_<edition>.ttl``
+    (which shape), or not (why), and whether the 2002 rule is kept off the edition's instances."""
+    from stepnc_graph.artefacts.build import edition_sources
+    from stepnc_graph.generators.edition_shapes import edition_rules
+    from stepnc_graph.mapping.editions import RENAMED
+    from stepnc_graph.mapping.plans import Plans
+
+    catalog, model = load_catalog_model(root / "ontology" / "express")
+    base = Plans(model, catalog.naming)
+    return [rule for e in edition_sources(catalog.directory, base)
+            for rule in edition_rules(e.edition, e.catalog, e.model, model, e.naming, RENAMED.get(e.edition, {}))]

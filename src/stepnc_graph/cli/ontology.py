@@ -84,23 +84,28 @@ def ontology_reference_cmd() -> None:
 def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
     """Entities, types and attributes per schema: in the EXPRESS and in the ontology.
 
-    The two counts must be equal (100 % coverage); exit 1 if they are not.
+    The two counts must be equal (100 % coverage); exit 1 if they are not. Then the WHERE rules
+    translated to SHACL per schema, the others with their reasons, the schema defects, and per
+    other edition the rules that differ from 2002: which shape of shapes/edition_<edition>.ttl
+    checks each on that edition's instances, or why none does.
     """
     from rich.table import Table
 
     from stepnc_graph.express import ExpressSyntaxError
     from stepnc_graph.schema import SchemaError
-    from stepnc_graph.artefacts.stats import ontology_stats, rule_stats
+    from stepnc_graph.artefacts.stats import edition_rule_stats, ontology_stats, rule_stats
 
     try:
         rows = ontology_stats(root or data_root())
         rules = rule_stats(root or data_root())
+        edition_rules = edition_rule_stats(root or data_root())
     except (ExpressSyntaxError, SchemaError) as exc:
         fail_input(exc, fmt)
     complete = all(r.complete for r in rows)
     if fmt == "json":
         echo_json({"complete": complete, "schemas": [r.asdict() for r in rows],
-                   "where_rules": [r.asdict() for r in rules]})
+                   "where_rules": [r.asdict() for r in rules],
+                   "edition_rules": [r.asdict() for r in edition_rules]})
     else:
         table = Table(title="ISO 14649 ontology coverage (EXPRESS / OWL)")
         for col in ("schema", "entities", "types", "attributes", "complete"):
@@ -125,7 +130,21 @@ def ontology_stats_cmd(root: Path | None, fmt: str) -> None:
         for rs in rules:
             for rule, why in rs.defects:
                 out.print(f"  schema defect: {escape(rs.schema)} {escape(rule)}: {escape(why)}")
+        _print_edition_rules(edition_rules)
     sys.exit(EXIT_OK if complete else EXIT_NONCONFORMING)
+
+
+def _print_edition_rules(rules: list[Any]) -> None:
+    """Per edition, its WHERE rules that differ from 2002 and what checks each on its instances."""
+    for edition in dict.fromkeys(r.edition for r in rules):
+        mine = [r for r in rules if r.edition == edition]
+        out.print(f"WHERE rules of edition {escape(edition)} that differ from 2002: {len(mine)}, "
+                  f"{sum(r.shape is not None for r in mine)} translated (shapes/edition_{escape(edition)}.ttl)")
+        for r in mine:
+            withheld = "; the 2002 rule is not applied to its instances" if r.shipped_withheld else ""
+            what = (f"checked by {r.shape}{f' ({r.reason})' if r.reason else ''}" if r.shape else
+                    f"not translated: {r.reason}")
+            out.print(f"  {escape(r.rule)} ({escape(r.kind)}): {escape(what)}{escape(withheld)}")
 
 
 def _print_table(table: Any) -> None:

@@ -189,6 +189,8 @@ def _bar(counter: Any) -> Progress:
 def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt: str, location: str,
                   size: int | None) -> NoReturn:
     """Each file's summary, then the store's size on disk (where it has one), and the exit code."""
+    from stepnc_graph.mapping.editions import other_form_sentences  # loaded with the files already
+
     if fmt == "json":
         echo_json({"files": [r.asdict() for r in results], "errors": [error_record(e) for e in failures],
                    "store": location, "disk_bytes": size})
@@ -201,8 +203,9 @@ def _report_loads(results: list[LoadResult], failures: list[BaseException], fmt:
                       f"{r.triples:,} triples, {len(r.diagnostics):,} diagnostics ({errors:,} errors) in "
                       f"{r.seconds:.2f} s{rate}")
             if r.edition is not None:
+                mixed = "".join(f"; {s}" for s in other_form_sentences(r.in_other_editions))
                 out.print(f"  edition {r.edition.edition} (chosen by {r.edition.chosen_by}: "
-                          f"{escape('; '.join(r.edition.evidence) or 'no evidence')})")
+                          f"{escape('; '.join(r.edition.evidence) or 'no evidence')}){escape(mixed)}")
             for d in r.diagnostics:
                 ident = f" #{d.p21_id}" if d.p21_id is not None else ""
                 out.print(f"  [{_COLOURS.get(d.severity, 'blue')}]{d.severity}[/] {d.line}:{d.column}{ident} "

@@ -59,7 +59,8 @@ def phases() -> Iterator[Callable[[str], None] | None]:
                    "FILES.")
 @click.option("--no-iso-shapes", "no_iso", is_flag=True,
               help="Leave out the ISO 14649 shapes and process rules: only --shapes run (a general SHACL "
-                   "validator for any RDF data).")
+                   "validator for any RDF data). Programs of another edition are then checked by those only; the "
+                   "report notes it.")
 @click.option("--strict", is_flag=True, help="Stop at the first Part 21 syntax error (exit 2) instead of "
                                              "recovering and reporting it.")
 @click.option("--allow-service", is_flag=True,

@@ -136,6 +136,51 @@ def edition_shapes(edition: str, catalog: Catalog, own: SchemaModel, shipped: Sc
 
 
 
+@dataclass(frozen=True)
+class EditionRule:
+    """What becomes of one WHERE rule that differs between an edition and 2002 (:class:`RuleDifference`):
+    its ``kind`` (``differs``, ``edition only``, ``2002 only``), the edition's shape that checks it on
+    the edition's instances (None: not translated, or the edition has no such rule) with ``reason``
+    why not (or, for a schema defect whose intent the shape checks, what it checks), and whether the
+    2002 rule's shape is kept off those instances (``shapes:notForEdition``)."""
+
+    edition: str
+    entity: str
+    label: str
+    kind: str
+    shape: str | None
+    reason: str | None
+    shipped_withheld: bool
+
+    @property
+    def rule(self) -> str:
+        return f"{self.entity}.{self.label.lower()}"
+
+    def asdict(self) -> dict[str, Any]:
+        return {"edition": self.edition, "rule": self.rule, "kind": self.kind, "translated": self.shape is not None,
+                "shape": self.shape, "reason": self.reason, "shipped_rule_withheld": self.shipped_withheld}
+
+
+def edition_rules(edition: str, catalog: Catalog, own: SchemaModel, shipped: SchemaModel,
+                  naming: EditionNaming, renamed: Mapping[str, str]) -> list[EditionRule]:
+    """Each rule of :func:`rule_differences` and what :func:`edition_shapes` makes of it (the same
+    generator, so the same translations): for ``ontology stats`` and the docs."""
+    generator = ShapesGenerator(own, catalog, naming, shape_prefix=f"{edition}.")
+    coverage = {(c.owner, c.label.upper()): c for c in generator.coverage()}
+    out = []
+    for d in rule_differences(own, shipped, renamed):
+        withheld = _shipped_shape(shipped, naming, d) is not None
+        c = coverage.get((d.entity, d.label)) if d.edition_text is not None else None
+        if c is None:
+            out.append(EditionRule(edition, d.entity, d.label, d.kind, None,
+                                   f"{edition} has no such rule" if d.edition_text is None else "not compiled",
+                                   withheld))
+            continue
+        shape = f"shapes:{edition}.{d.entity}-{d.label.lower()}" if c.translated else None
+        out.append(EditionRule(edition, d.entity, d.label, d.kind, shape, c.reason, withheld))
+    return out
+
+
 def _shipped_shape(shipped: SchemaModel, naming: Naming, d: RuleDifference) -> URIRef | None:
     """The shape the shipped shapes check the 2002 rule of ``d`` with (named as the shapes
     generator names it), or None when 2002 has no such rule or does not translate it."""

@@ -31,6 +31,7 @@ from decimal import Decimal
 from typing import Any
 
 import express_schema.parse as ast
+from express_schema.lex import Identifier
 
 from stepnc_graph.core.naming import Naming
 from stepnc_graph.schema.model import Attribute, Entity, SimpleType
@@ -157,10 +158,30 @@ def _aggregate_typeof(c: "RuleCompiler", e: Any) -> "Agg | None":
     return operand if isinstance(operand, Agg) else None
 
 
+#: names TYPEOF gives besides those of the schemas' declared types: the simple and aggregation
+#: types a value may have (ISO 10303-11, TYPEOF)
+_BUILT_IN_TYPES = frozenset({"aggregate", "array", "bag", "binary", "boolean", "integer", "list", "logical",
+                             "number", "real", "set", "string"})
+
+
+def _undeclared_typeof(c: "RuleCompiler", e: Any) -> tuple[str, Any] | None:
+    """(the name, the operand) of ``'S.X' IN TYPEOF(v)`` when X is no type the schemas declare
+    nor a built-in one: TYPEOF gives only such names, so the test is never TRUE (the schema prefix
+    and letter case set aside, as everywhere a TYPEOF string is read)."""
+    if not (isinstance(e, ast.BinaryExpr) and e.op is ast.BinaryOp.IN and isinstance(e.left, ast.StringLiteral)
+            and isinstance(e.right, ast.Call) and c.callee(e.right) == "typeof"):
+        return None
+    name = str(e.left.value).split(".")[-1].lower()
+    if name in _BUILT_IN_TYPES or c.model.get(name) is not None:
+        return None
+    return name, e.right.args[0].value
+
+
 def _possible(c: "RuleCompiler", e: Any) -> frozenset[str]:
     """The truth values (ISO 10303-11 three-valued logic) ``e`` can take over all instances, as far
     as its form shows: ``'S.E' IN TYPEOF(aggregate)`` is FALSE (TYPEOF of an aggregate names no
-    entity), UNKNOWN too when the aggregate may be unset; every other test may be anything."""
+    entity), and so is ``'S.X' IN TYPEOF(v)`` for an X no schema declares; UNKNOWN too when the
+    operand may be unset; every other test may be anything."""
     if isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NOT:
         return frozenset(_NOT[v] for v in _possible(c, e.operand))
     if isinstance(e, ast.BinaryExpr) and e.op in (ast.BinaryOp.AND, ast.BinaryOp.OR, ast.BinaryOp.XOR):
@@ -171,15 +192,24 @@ def _possible(c: "RuleCompiler", e: Any) -> frozenset[str]:
     if agg is not None:
         always = agg.present == "true" or _mandatory(c, e.right.args[0].value)
         return frozenset({_F}) if always else frozenset({_F, _U})
+    undeclared = _undeclared_typeof(c, e)
+    if undeclared is not None:
+        return frozenset({_F}) if _mandatory(c, undeclared[1]) else frozenset({_F, _U})
     return frozenset({_T, _F, _U})
 
 
 def _mandatory(c: "RuleCompiler", e: Any) -> bool:
     """Whether ``e`` names a mandatory attribute of the rule's entity: set in every instance that is
     otherwise valid (a missing one is reported by its own shape, sh:minCount)."""
-    if not isinstance(e, ast.NameRef):
+    if isinstance(e, ast.NameRef):
+        name = str(e.identifier)
+    elif isinstance(e, ast.AttributeRef) and isinstance(e.source, ast.Self):  # SELF.a
+        name = str(e.identifier)
+    elif isinstance(e, ast.QualifiedAttributeRef) and isinstance(e.source, ast.Self):  # SELF\supertype.a
+        name = str(e.attribute)
+    else:
         return False
-    a = c.model.attribute(c.entity.name, str(e.identifier).lower())
+    a = c.model.attribute(c.entity.name, name.lower())
     return a is not None and a.kind == "explicit" and not a.optional
 
 
@@ -189,8 +219,23 @@ def never_satisfied(model: SchemaModel, naming: Naming, entity: Entity, expr: An
     c = RuleCompiler(model, naming, entity)
     if _possible(c, expr) != frozenset({_F}):
         return None
+    undeclared = sorted({u[0] for t in _tests(expr) if (u := _undeclared_typeof(c, t)) is not None
+                         and _aggregate_typeof(c, t) is None})
+    if undeclared:
+        return (f"as written it is FALSE for every instance: TYPEOF gives only the names of types the schemas "
+                f"declare (and built-in ones), {', '.join(repr(u) for u in undeclared)} names none of them, and "
+                f"the rule admits nothing else")
     return ("as written it is FALSE for every instance: 'S.E' IN TYPEOF(x) of an aggregate x is FALSE "
             "(TYPEOF of an aggregate names no entity), and the rule admits nothing else")
+
+
+def _tests(e: Any) -> list[Any]:
+    """The operands of the NOT, AND, OR and XOR in ``e``, down to the tests they combine."""
+    if isinstance(e, ast.UnaryExpr) and e.op is ast.UnaryOp.NOT:
+        return _tests(e.operand)
+    if isinstance(e, ast.BinaryExpr) and e.op in (ast.BinaryOp.AND, ast.BinaryOp.OR, ast.BinaryOp.XOR):
+        return _tests(e.left) + _tests(e.right)
+    return [e]
 
 
 def _disjuncts(e: Any) -> list[Any]:
@@ -225,6 +270,28 @@ def _intent(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Tr
     return Translation(sparql=f"SELECT DISTINCT $this WHERE {{ {body} }}", intent=words)
 
 
+def _enumeration_intent(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Translation | None:
+    """The evident intent of ``'S.X' IN TYPEOF(a)`` (ORed with itself, at most) where X is no type
+    but an item of the enumeration that is ``a``'s type: ``a = X`` (TYPEOF of an enumeration value
+    names its type, never an item). None for any other form."""
+    c = RuleCompiler(model, naming, entity)
+    found = {(u[0], express_text(u[1])) for t in _tests(expr) if (u := _undeclared_typeof(c, t)) is not None}
+    tests = _disjuncts(expr)
+    if len(found) != 1 or any(_undeclared_typeof(c, t) is None for t in tests):
+        return None
+    item = next(iter(found))[0]
+    operand = tests[0].right.args[0].value
+    equal = ast.BinaryExpr(tests[0].position, operand, ast.BinaryOp.EQUAL, ast.NameRef(tests[0].position, Identifier(item)))
+    try:
+        condition = c.logic.boolean(equal)
+    except Untranslatable:
+        return None  # X is no item of a's type: no evident intent
+    body = c.scope.text([f"!{condition}" if condition.startswith("(") else f"!({condition})"])
+    attribute = str(operand.identifier if isinstance(operand, ast.AttributeRef) else
+                    operand.attribute if isinstance(operand, ast.QualifiedAttributeRef) else express_text(operand))
+    return Translation(sparql=f"SELECT DISTINCT $this WHERE {{ {body} }}", intent=f"{attribute} is .{item.upper()}.")
+
+
 def translate_rule(model: SchemaModel, naming: Naming, entity: Entity, expr: Any) -> Translation:
     """The SHACL rendering of one entity WHERE rule; raises :class:`Untranslatable`.
 
@@ -233,7 +300,7 @@ def translate_rule(model: SchemaModel, naming: Naming, entity: Entity, expr: Any
     checked otherwise -- a correct program is never non-conforming for the schema's mistake."""
     defect = never_satisfied(model, naming, entity, expr)
     if defect is not None:
-        intent = _intent(model, naming, entity, expr)
+        intent = _intent(model, naming, entity, expr) or _enumeration_intent(model, naming, entity, expr)
         if intent is None:
             raise Untranslatable(f"schema defect: {defect}; no evident intent to check instead")
         return dataclasses.replace(intent, defect=defect)

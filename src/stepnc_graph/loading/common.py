@@ -17,7 +17,7 @@ from stepnc_graph.core.errors import StepncGraphError
 from stepnc_graph.part21.diagnostics import Diagnostic
 
 if TYPE_CHECKING:
-    from stepnc_graph.mapping.editions import EditionChoice
+    from stepnc_graph.mapping.editions import EditionChoice, OtherForm
 
 DCT = "http://purl.org/dc/terms/"
 OWL_SAME_AS = "<http://www.w3.org/2002/07/owl#sameAs>"
@@ -84,14 +84,20 @@ class LoadResult:
     #: the edition of ISO 14649 the file was read in, how it was chosen and why
     #: (:func:`stepnc_graph.mapping.editions.decide_edition`); None for a JSON-LD load
     edition: EditionChoice | None = None
-    #: #id -> edition of each instance read in another edition than the file's
-    other_editions: dict[int, str] = field(default_factory=dict)
+    #: the instances read in another edition than the file's, per entity and edition (evidence,
+    #: not diagnostics: see :class:`~stepnc_graph.mapping.editions.OtherForm`)
+    in_other_editions: tuple[OtherForm, ...] = ()
+
+    @property
+    def other_editions(self) -> dict[int, str]:
+        """#id -> edition of each instance read in another edition than the file's."""
+        return {i: f.edition for f in self.in_other_editions for i in f.ids}
 
     def asdict(self) -> dict[str, Any]:
         return {
             "path": self.path, "graph": self.graph,
-            **({"edition": {**self.edition.asdict(), "instances_in_other_editions": {
-                f"#{i}": e for i, e in sorted(self.other_editions.items())}}} if self.edition else {}),
+            **({"edition": {**self.edition.asdict(), "instances_in_other_editions": [
+                f.asdict() for f in self.in_other_editions]}} if self.edition else {}),
             "instances": self.instances, "raw_instances": self.raw,
             "unreadable_instances": self.unreadable, "unreadable_texts": self.unreadable_texts,
             "triples": self.triples, "derived_triples": self.derived_triples, "seconds": round(self.seconds, 3),

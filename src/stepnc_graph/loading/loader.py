@@ -17,7 +17,8 @@ import pyoxigraph as ox
 
 from stepnc_graph.core.version import __version__
 from stepnc_graph.mapping import ntriples as T
-from stepnc_graph.mapping.editions import decide_edition, edition_plans, other_fit
+from stepnc_graph.mapping.editions import (decide_edition, edition_plans, group_other_forms, other_fit,
+                                             other_form_sentences)
 from stepnc_graph.mapping.mapper import DerivedTables, InstanceMapper
 from stepnc_graph.mapping.plans import EntityPlan
 from stepnc_graph.loading.derive import derive, edition_tables
@@ -152,15 +153,13 @@ class _Load:
     def other_edition(self, name: str, count: int) -> tuple[str, EntityPlan, DerivedTables | None, str] | None:
         """Where an instance the file's edition cannot read (``name`` unknown there, or not with
         ``count`` parameters) fits another edition: that edition, its plan and derived tables, and
-        what the file's edition has under the name (the mapper's P21-EDITION-MIX)."""
+        what the file's edition has under the name (for the load's report of such instances)."""
         edition = other_fit(self.choice.edition, name, count)
         if edition is None:
             return None
         plan = edition_plans(edition).entities[name.upper()]
         mine = self.mapper.plans.entities.get(name.upper())
-        has = (f"{self.choice.edition} (this file's edition) has no {name}" if mine is None else
-               f"{self.choice.edition} (this file's edition) has {len(mine.slots)} "
-               f"({', '.join(s.name for s in mine.slots)})")
+        has = "no such entity" if mine is None else f"{len(mine.slots)} ({', '.join(s.name for s in mine.slots)})"
         return edition, plan, edition_tables(edition) if self.derived else None, has
 
     def chunks(self) -> Iterator[Chunk]:
@@ -191,7 +190,7 @@ class _Load:
         result.unreadable = len(self.mapper.unreadable)
         result.unreadable_texts = len(self.reader.unreadable_texts)
         result.defined = self.reader.defined
-        result.other_editions = dict(self.mapper.editions)
+        result.in_other_editions = group_other_forms(self.mapper.other_forms)
         meta = self.metadata()
         result.triples += len(meta)
         yield "".join(out) + "".join(meta)
@@ -279,11 +278,13 @@ class _Load:
 
     def edition_triples(self) -> list[str]:
         """The file's edition, how it was chosen and the evidence, on the graph's node (the writer
-        reads ``p21:edition`` to write the file back in it)."""
+        reads ``p21:edition`` to write the file back in it); the instances read in another edition
+        are evidence too, one sentence per edition (each instance also carries its ``p21:edition``)."""
         g, choice = f"<{self.graph}>", self.choice
+        evidence = [*choice.evidence, *other_form_sentences(self.result.in_other_editions)]
         return [f"{g} {P21_EDITION} {T.string(choice.edition)} .\n",
                 f"{g} <{P21_NS}editionChosenBy> {T.string(choice.chosen_by)} .\n",
-                *(f"{g} <{P21_NS}editionEvidence> {T.string(e)} .\n" for e in choice.evidence)]
+                *(f"{g} <{P21_NS}editionEvidence> {T.string(e)} .\n" for e in evidence)]
 
     def edition3(self) -> list[str]:
         """ANCHOR, REFERENCE, DATA section and SIGNATURE triples (ISO 10303-21:2016, 9-11, 13)."""

@@ -68,6 +68,32 @@ _SCHEMA_EDITION = {"MILLING_TOOL_SCHEMA": SHIPPED, "TURNING_SCHEMA": SHIPPED, "T
                    "COMBINED_SCHEMA": SHIPPED}
 
 
+#: forms of entities that editions stepnc-graph cannot read have, by (entity, parameter count):
+#: (the edition, its parameters, where it is recorded). Named in the diagnostic of an instance
+#: in such a form, which no edition read here has (it stays a diagnostic, the instance raw).
+#: ``cutting_component`` with 4: ISO 14649-10 as published (2004) dropped ``technological_data``
+#: and renamed ``tool_offset_length``, as the merged AP238 ARM EXPRESS of 2006 (STEP Tools, IS
+#: version, the published ISO 14649-10/-11/-12/-111/-121 merged) declares it, untagged by its
+#: "ADDED BY 10303-238" and "RELAXED BY 10303-238" marks; ISO/FDIS 14649-11 Annex F's first example
+#: program is written in it.
+UNREAD_FORMS: dict[tuple[str, int], tuple[str, str, str]] = {
+    ("cutting_component", 4): ("ISO 14649-10 as published (2004)",
+                               "tool_functional_length, its_material, expected_tool_life, its_technology",
+                               "the merged AP238 ARM EXPRESS of 2006"),
+}
+
+
+def unread_form(name: str, count: int) -> str | None:
+    """What :data:`UNREAD_FORMS` says of ``name`` with ``count`` parameters, as a clause of a
+    diagnostic's message; None when it knows no such form."""
+    known = UNREAD_FORMS.get((name.lower(), count))
+    if known is None:
+        return None
+    edition, params, source = known
+    return (f"{count} parameters ({params}) is the form of {edition}, an edition stepnc-graph does not read "
+            f"(recorded in {source}); kept raw")
+
+
 def check_edition(edition: str) -> str:
     """``edition`` if it is one this module reads, else a ``ValueError`` that lists them."""
     if edition not in EDITIONS:
@@ -313,6 +339,57 @@ class EditionChoice:
     def asdict(self) -> dict[str, object]:
         return {"edition": self.edition, "title": TITLES[self.edition], "chosen_by": self.chosen_by,
                 "evidence": list(self.evidence)}
+
+
+@dataclass(frozen=True)
+class OtherForm:
+    """The instances of one entity that the file's edition cannot read (unknown name, another
+    parameter count) and ``edition`` reads exactly: read in ``edition`` (``p21:edition`` on each).
+    Evidence of what a file holds, not a problem: a file that mixes editions gets a diagnostic
+    only for an instance no edition reads (issue 29). ``form`` is the edition's parameter list,
+    ``file_has`` what the file's edition has under the name."""
+
+    entity: str
+    edition: str
+    ids: tuple[int, ...]
+    lines: tuple[int, ...]
+    form: str
+    file_has: str
+
+    def asdict(self) -> dict[str, object]:
+        return {"entity": self.entity, "edition": self.edition, "ids": [f"#{i}" for i in self.ids],
+                "lines": list(self.lines), "form": self.form, "file_edition_has": self.file_has}
+
+
+#: how many #ids of one entity a sentence of :func:`other_form_sentences` names
+_NAMED_IDS = 10
+
+
+def group_other_forms(rows: list[tuple[int, str, str, int, str, str]]) -> tuple[OtherForm, ...]:
+    """Per entity and edition, in file order: the :class:`OtherForm` of ``rows`` (#id, entity name,
+    edition, line, form, what the file's edition has), one row per instance."""
+    groups: dict[tuple[str, str], list[tuple[int, str, str, int, str, str]]] = {}
+    for row in sorted(rows):
+        groups.setdefault((row[1].upper(), row[2]), []).append(row)
+    return tuple(OtherForm(entity, edition, tuple(r[0] for r in rs), tuple(r[3] for r in rs), rs[0][4], rs[0][5])
+                 for (entity, edition), rs in groups.items())
+
+
+def other_form_sentences(forms: tuple[OtherForm, ...]) -> list[str]:
+    """One sentence per edition: ``2 instance(s) in the 2002 form: BORING_TOOL #244, #268`` (at
+    most :data:`_NAMED_IDS` #ids named per entity; the load result lists them all)."""
+    by_edition: dict[str, list[OtherForm]] = {}
+    for f in forms:
+        by_edition.setdefault(f.edition, []).append(f)
+    out = []
+    for edition, group in by_edition.items():
+        named = []
+        for f in group:
+            ids = ", ".join(f"#{i}" for i in f.ids[:_NAMED_IDS])
+            more = f" and {len(f.ids) - _NAMED_IDS:,} more" if len(f.ids) > _NAMED_IDS else ""
+            named.append(f"{f.entity} {ids}{more}")
+        out.append(f"{sum(len(f.ids) for f in group):,} instance(s) in the {edition} form: {'; '.join(named)}")
+    return out
 
 
 @lru_cache(maxsize=1)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from stepnc_graph.mapping import ntriples as T
+from stepnc_graph.mapping.editions import unread_form
 from stepnc_graph.mapping.plans import (
     P21_DERIVED,
     P21_EDITION,
@@ -163,8 +164,9 @@ class InstanceMapper:
         self.plans = plans
         #: where an instance that does not fit ``plans`` may fit another edition (see :meth:`map`)
         self.fallback = fallback
-        #: #id -> the edition each instance read by :attr:`fallback` was read in
-        self.editions: dict[int, str] = {}
+        #: each instance read by :attr:`fallback`: (#id, entity name, edition, line, that edition's
+        #: parameters, what the file's edition has under the name), for the load's report
+        self.other_forms: list[tuple[int, str, str, int, str, str]] = []
         self.positions = positions
         self.derived = derived
         #: derived-layer lines of the instances mapped so far (the loader takes them away)
@@ -419,12 +421,14 @@ class InstanceMapper:
     def _other_edition(self, inst: Instance, first: Mismatch, s: str, lines: list[str], derived: list[str] | None,
                        labels: list[tuple[str, Any]]) -> EntityPlan:
         """An instance the file's edition does not know by name or parameter count, read in the
-        edition it fits (:attr:`fallback`): its triples, ``p21:edition`` (so the writer writes it in
-        that form again) and a P21-EDITION-MIX warning at its #id. ``first`` again when none fits."""
+        edition it fits (:attr:`fallback`): its triples and ``p21:edition`` (so the writer writes it
+        in that form again), recorded in :attr:`other_forms` -- evidence, not a diagnostic: the
+        instance is correct in an edition stepnc-graph reads. ``first`` again when none fits."""
         found = None if self.fallback is None or first.code not in ("P21-UNKNOWN-ENTITY", "P21-ARGUMENT-COUNT") \
             else self.fallback(inst.name or "", len(inst.params))
         if found is None:
-            raise first
+            known = unread_form(inst.name or "", len(inst.params)) if first.code == "P21-ARGUMENT-COUNT" else None
+            raise first if known is None else Mismatch(first.code, f"{first.message}; {known}")
         edition, plan, tables, own = found
         del lines[:], labels[:]
         if derived is not None:
@@ -433,10 +437,8 @@ class InstanceMapper:
             self.derived = merge_tables(self.derived, tables)
         self._simple(s, plan, inst.params, lines, derived, labels)
         lines.append(f"{s} {P21_EDITION} {T.string(edition)} .\n")
-        self.editions[inst.id] = edition
-        self._diagnose(inst, "P21-EDITION-MIX", f"{inst.name} with {len(inst.params)} parameter(s) is the {edition} "
-                                                f"form ({', '.join(sl.name for sl in plan.slots)}); {own}; read as "
-                                                f"{edition}")
+        self.other_forms.append((inst.id, inst.name or "", edition, inst.line,
+                                 f"{len(plan.slots)} ({', '.join(sl.name for sl in plan.slots)})", own))
         return plan
 
     def _source(self, inst: Instance, s: str, out: list[str]) -> None:

@@ -38,8 +38,6 @@ CODES: dict[str, tuple[Severity, str]] = {
     "P21-ABSTRACT": ("warning", "an instance of an ABSTRACT entity"),
     "P21-UNRESOLVED-REF": ("error", "a reference to an instance the file does not define"),
     "P21-UNKNOWN-SCHEMA": ("warning", "FILE_SCHEMA names a schema stepnc-graph does not know"),
-    "P21-EDITION-MIX": ("warning", "an instance in the form of another edition of ISO 14649 than the file's; read "
-                                   "in that edition (p21:edition on the instance)"),
 }
 
 

@@ -11,7 +11,7 @@ Shapes come from ``shapes/`` (generated ``*.ttl`` and the hand-written
 ``shapes/process/*.ttl``; left out with ``iso_shapes=False``) plus any
 ``extra_shapes`` files; they are compiled once per process (:mod:`.engine`)
 and run by the store. Loader diagnostics of the files loaded here are results
-too (severity Violation).
+too, of the diagnostic's own severity (an error a Violation, a warning a Warning).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from stepnc_graph.part21.diagnostics import Diagnostic
 from stepnc_graph.store.contract import Store, is_store
 from stepnc_graph.validation.compiled import CompiledShapes, CompiledShapesWarning, compile_shapes, shape_files
 from stepnc_graph.validation.describe import Describer, diagnostic_result, ill_typed_result
-from stepnc_graph.validation.editions import edition_rules
+from stepnc_graph.validation.editions import edition_notes, edition_rules
 from stepnc_graph.validation.engine import SHAPES_GRAPH, Check
 from stepnc_graph.validation.runner import refuse_service, run
 from stepnc_graph.validation.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
@@ -156,6 +156,7 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
                     phase: Callable[[str], None] = lambda text: None) -> ValidationReport:
     targets = list(graphs) if graphs is not None else program_graphs(store)
     results: list[Result] = []
+    notes: list[str] = []
     ran = 0
     oxstore: ox.Store = store.oxigraph
     for graph in targets:
@@ -169,6 +170,7 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
         phase(f"describing {len(rows):,} result(s) of {_short_graph(graph)}")
         describer = Describer(oxstore, graph, shapes, loaded.lines if loaded else None)
         results += edition_rules(oxstore, graph, describer.results(rows), shapes.files)
+        notes += edition_notes(oxstore, graph, shapes.files)
         if data and graph in data:
             results += [ill_typed_result(graph, bad) for bad in data[graph].ill_typed]
         elif graph in diagnostics:
@@ -176,7 +178,7 @@ def _validate_store(store: Store, graphs: Sequence[str] | None, shapes: Compiled
         else:
             results += describer.raw_instances()
     results.sort(key=lambda r: r.sort_key)
-    return ValidationReport(results, targets, ran)
+    return ValidationReport(results, targets, ran, notes=notes)
 
 
 def _short_graph(graph: str) -> str:

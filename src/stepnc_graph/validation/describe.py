@@ -35,12 +35,18 @@ def ill_typed_result(graph: str, bad: object) -> Result:
                   path_iri=bad.predicate, value_term=bad.literal, focus_term=bad.subject)
 
 
+#: a loader diagnostic's severity as a result's: an error fails the program, a warning (a
+#: recovered syntax slip, a remark skipped) or an info only informs, as the loader said
+_DIAGNOSTIC_SEVERITY = {"error": "Violation", "warning": "Warning", "info": "Info"}
+
+
 def diagnostic_result(graph: str, d: Diagnostic) -> Result:
+    """A loader diagnostic of a file validated here as a result of its own severity."""
     from stepnc_graph.core.naming import instance_iri
 
     focus = instance_iri(graph, d.p21_id) if d.p21_id is not None else graph
-    return Result("Violation", graph, focus, d.p21_id, None, d.line, None, None, d.message, d.code,
-                  "ISO 10303-21", f"loader:{d.code}")
+    return Result(_DIAGNOSTIC_SEVERITY[d.severity], graph, focus, d.p21_id, None, d.line, None, None, d.message,
+                  d.code, "ISO 10303-21", f"loader:{d.code}")
 
 
 def _readable_path(path: str) -> str:

@@ -19,6 +19,7 @@ edition it holds for: each instance is checked by its own edition's rule.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -118,3 +119,21 @@ def _absent_attribute(store: ox.Store, graph: str, r: Result, edition: str) -> b
     shipped = edition_plans(SHIPPED)
     in_2002 = any(prop in {s.prop for s in p.slots} for c in classes if (p := shipped.by_class.get(c)) is not None)
     return in_2002 and all(prop not in {s.prop for s in p.slots} for p in entity_plans)
+
+
+def edition_notes(store: ox.Store, graph: str, shape_files: Sequence[Path]) -> list[str]:
+    """What the report says when ``graph`` holds instances read in an edition other than 2002 and
+    none of the shapes in use is a rule of that edition (a user's own set, ``--no-iso-shapes``,
+    without ``shapes/edition_<edition>.ttl``): those instances were checked by the given shapes
+    only, so a rule of their edition that differs from 2002 was not checked. Said, not left silent."""
+    own_shape, _ = edition_marks(shape_files)
+    covered = set(own_shape.values())
+    own, others = _editions(store, graph)
+    counts = Counter(others.values())
+    out = []
+    for edition in sorted(({own} | set(counts)) - {SHIPPED} - covered):
+        read = f"{counts[edition]:,} instance(s) of" if edition != own else "the instances of"
+        out.append(f"{graph}: {read} edition {edition} were checked by the given shapes only, not by that "
+                   f"edition's own WHERE rules (shapes/edition_{edition}.ttl, part of the ISO 14649 shapes, is "
+                   f"not among them)")
+    return out

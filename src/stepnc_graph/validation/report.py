@@ -91,6 +91,9 @@ class ValidationReport:
     graphs: list[str]
     checks_run: int = 0
     seconds: float = 0.0
+    #: what the results alone do not say about how the data was checked (e.g. instances of another
+    #: edition checked without that edition's rules: :func:`.editions.edition_notes`)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def conforms(self) -> bool:
@@ -107,7 +110,7 @@ class ValidationReport:
         """The results of ``severity`` or more severe."""
         level = SEVERITIES.index(severity)
         return ValidationReport([r for r in self.results if rank(r.severity) <= level], self.graphs,
-                                self.checks_run, self.seconds)
+                                self.checks_run, self.seconds, self.notes)
 
     def counts(self) -> dict[str, int]:
         out = {s: sum(r.severity == s for r in self.results) for s in SEVERITIES}
@@ -130,7 +133,7 @@ class ValidationReport:
         shown = self.results if max_results is None else self.results[:max_results]
         doc = {"conforms": self.conforms, "passes": self.passes, "graphs": self.graphs, "counts": self.counts(),
                "by_rule": [c.asdict() for c in self.by_rule()], "results": [r.asdict() for r in shown],
-               "omitted": len(self.results) - len(shown)}
+               "omitted": len(self.results) - len(shown), "notes": self.notes}
         return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
 
     def to_text(self, max_results: int | None = None) -> str:
@@ -171,6 +174,7 @@ class ValidationReport:
         if shown < len(self.results):
             lines.append(f"... {len(self.results) - shown:,} more result(s) not listed (--max-results {shown:,})")
         lines += self._rule_lines()
+        lines += [_one_line(f"note: {n}") for n in self.notes]
         return "\n".join(lines) + "\n"
 
     def _rule_lines(self) -> list[str]:
@@ -212,8 +216,10 @@ class ValidationReport:
     def to_turtle(self) -> str:
         """The standard SHACL validation report."""
         out = ["@prefix sh: <http://www.w3.org/ns/shacl#> .",
-               "@prefix p21: <https://w3id.org/stepnc-graph/p21#> .", "",
-               f"[] a sh:ValidationReport ; sh:conforms {'true' if self.conforms else 'false'}"]
+               "@prefix p21: <https://w3id.org/stepnc-graph/p21#> .",
+               *(["@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> ."] if self.notes else []), "",
+               f"[] a sh:ValidationReport ; sh:conforms {'true' if self.conforms else 'false'}"
+               + "".join(f" ;\n  rdfs:comment {_literal(n)}" for n in self.notes)]
         for r in self.results:
             severity = f"sh:{r.severity}" if r.severity in SEVERITIES else _term(r.severity)
             messages = r.message_terms or (_literal(r.message),)
