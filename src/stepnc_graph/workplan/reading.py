@@ -301,14 +301,15 @@ def _tool_bodies(store: Store, graph: str) -> dict[str, str]:
     return {tool: " & ".join(sorted(classes[body])) for tool, body in bodies.items() if classes.get(body)}
 
 
-def _steps(store: Store, graph: str, info: dict[str, Thing]) -> tuple[list[Step], list[tuple[str, str, str]]]:
+def _steps(store: Store, graph: str, info: dict[str, Thing],
+           network: bool = True) -> tuple[list[Step], list[tuple[str, str, str]]]:
     """The execution steps in order, with the things they name, whether they rough or finish and
-    their tool's body type (:func:`_add_technologies` adds the technologies); and the workingsteps'
-    ``feature`` and ``operation`` edges (for the graph)."""
+    their tool's body type (:func:`_add_technologies` adds the technologies); and, for the
+    ``network``, the workingsteps' ``feature`` and ``operation`` edges."""
     features: dict[str, set[str]] = defaultdict(set)
     for ws, f in _rows(store, graph, _FEATURES):
         features[ws].add(f)
-    edges = {(ws, "feature", f) for ws, found in features.items() for f in found}
+    edges = {(ws, "feature", f) for ws, found in features.items() for f in found} if network else set()
     grouped: dict[int, list[list[str]]] = defaultdict(list)
     for row in _rows(store, graph, _STEPS):
         grouped[int(row[0])].append(row)
@@ -321,7 +322,8 @@ def _steps(store: Store, graph: str, info: dict[str, Thing]) -> tuple[list[Step]
         # operation that both roughs and finishes counts as roughing
         op = max(r[5] for r in rows)
         kinds = {r[6] for r in rows if r[5] == op}
-        edges.update((ws, "operation", r[5]) for r in rows if r[5])
+        if network:
+            edges.update((ws, "operation", r[5]) for r in rows if r[5])
         steps.append(Step(order, info.get(ws) or Thing(ws, "", "", ""), _thing(info, wp), _thing(info, setup),
                           _thing(info, tool), _thing(info, op),
                           [f for f in (_thing(info, x) for x in sorted(features.get(ws, ()))) if f is not None],
@@ -364,7 +366,7 @@ def build_plan(store: Store, graph: str | None = None, *, network: bool = True) 
         raise PlanError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     info: dict[str, Thing] = {}
     _things(store, graph, _STEP_THINGS, _STEP_ROOTS, info)
-    steps, edges = _steps(store, graph, info)
+    steps, edges = _steps(store, graph, info, network)
     projects, source = _projects(store, graph), next((src for (src,) in _rows(store, graph, _SOURCE)), None)
     if network or len(steps) <= PlanPicture.DETAIL:
         _add_technologies(store, graph, steps)
