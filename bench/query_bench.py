@@ -229,11 +229,13 @@ def child_split(store_dir: str, spec: str, repeat: int) -> None:
         options = {**dataset(store, None, query.library), "prefixes": PREFIXES,
                    "substitutions": bind(store, query, given) or None}
         head, select = query.text.split("\nSELECT", 1)
-        counted = f"{head}\nSELECT (COUNT(*) AS ?rows) WHERE {{ SELECT{select}\n}}"
+        params = " ".join(f"?{p.name}" for p in query.params)  # a parameter is bound where it is SELECTed
+        counted = (f"{head}\nSELECT {params} (COUNT(*) AS ?rows) WHERE {{ SELECT{select}\n}}"
+                   + (f" GROUP BY {params}" if params else ""))
         raw = store.oxigraph  # pyoxigraph itself, the project's layer left out
 
         def rows() -> int:
-            return int(next(iter(raw.query(counted, **options)))[0].value)
+            return sum(int(row["rows"].value) for row in raw.query(counted, **options))
 
         def rust_json() -> int:
             return len(raw.query(query.text, **options).serialize(format=ox.QueryResultsFormat.JSON) or b"")
