@@ -25,7 +25,8 @@ on-disk store (not timed), each measurement in a fresh process, median of ``--re
 
 A run prints whether Python may cache bytecode: with ``PYTHONDONTWRITEBYTECODE`` set (and no cache
 written before) every run compiles the project's modules again, some 0.2 CPU-s of its start-up that
-an installed package does not pay.
+an installed package does not pay; ``--bytecode-cache DIR`` lets every child cache it there
+(``PYTHONPYCACHEPREFIX``), after an untimed first run of each command.
 
 The machine is shared: read CPU seconds beside wall seconds.
 """
@@ -141,6 +142,8 @@ def main() -> None:
     ap.add_argument("--baseline", metavar="SRC", help="an older source tree's src: its plan --svg beside this one's")
     ap.add_argument("--no-full-compare", action="store_true",
                     help="with --baseline: compare the summary and SVG only, not the JSON and GraphML")
+    ap.add_argument("--bytecode-cache", type=Path, metavar="DIR",
+                    help="let the children cache bytecode in DIR (as an installed package has it), an untimed run first")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -149,6 +152,9 @@ def main() -> None:
     from stepnc_graph.core.naming import default_graph_iri
 
     args.data.mkdir(parents=True, exist_ok=True)
+    if args.bytecode_cache:
+        os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+        os.environ["PYTHONPYCACHEPREFIX"] = str(args.bytecode_cache.resolve())
     cli = [sys.executable, "-m", "stepnc_graph.cli"]
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}; "
           + ("PYTHONDONTWRITEBYTECODE set: each run compiles the modules no earlier run cached"
@@ -169,6 +175,10 @@ def main() -> None:
                 subprocess.run([*cli, "load", "--store", str(store), str(path)], check=True, capture_output=True)
                 graph = default_graph_iri(str(path))
                 svg = work / "plan.svg"
+                if args.bytecode_cache:  # the caches written, untimed
+                    for src in [None] + ([args.baseline] if args.baseline else []):
+                        run([*cli, "plan", "--store", str(store), "--graph", graph, "--svg", str(svg)], src=src)
+                    run([*cli, "query", "workplan-sequence", "--store", str(store), "--graph", graph])
                 plan = median([run([*cli, "plan", "--store", str(store), "--graph", graph, "--svg", str(svg)])
                                for _ in range(args.repeat)])
                 full = median([run([*cli, "plan", "--store", str(store), "--graph", graph, "--format", "json",
