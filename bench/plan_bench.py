@@ -2,6 +2,8 @@
 
     pip install -e '.[bench]' && python bench/plan_bench.py                  # 100k and 200k instances
     python bench/plan_bench.py --sizes 200000 --programs generated            # the issue-32 200k figure
+    mkdir /tmp/before && git archive HEAD~1 | tar -x -C /tmp/before               # an earlier tree ...
+    python bench/plan_bench.py --sizes 100000 --baseline /tmp/before/src      # ... timed beside this one
 
 For each size and program (bench/generate.py's ``generated`` program, a ``replicated`` real one:
 copies of the shipped two-setup shaft unless ``--real`` names another), loaded once into an
@@ -16,7 +18,15 @@ on-disk store (not timed), each measurement in a fresh process, median of ``--re
   --format csv``, end to end): the same steps read by SPARQL, and the start-up floor
   (``python -c "import pyoxigraph, click"``);
 * **the picture**: width and height of the first page, pages, bytes, and how many workingstep boxes
-  or runs of steps it draws.
+  or runs of steps it draws;
+* with ``--baseline SRC`` (an older source tree's ``src``): its ``plan --svg`` too, runs alternating
+  with this code's (so a change in the machine's load falls on both), the ratio of the medians, and
+  whether the two wrote the same summary and picture (and, once, the same JSON and GraphML).
+
+A run prints whether Python may cache bytecode: with ``PYTHONDONTWRITEBYTECODE`` set (and no cache
+written before) every run compiles the project's modules again, some 0.2 CPU-s of its start-up that
+an installed package does not pay; ``--bytecode-cache DIR`` lets every child cache it there
+(``PYTHONPYCACHEPREFIX``), after an untimed first run of each command.
 
 The machine is shared: read CPU seconds beside wall seconds.
 """
@@ -46,12 +56,14 @@ SVG = "{http://www.w3.org/2000/svg}"
 TARGET = 2.0
 
 
-def run(cmd: list[str], out: Path | None = None) -> dict[str, float]:
-    """Wall and CPU seconds (user + system of the child) of ``cmd``; its output to ``out``."""
+def run(cmd: list[str], out: Path | None = None, src: str | None = None) -> dict[str, float]:
+    """Wall and CPU seconds (user + system of the child) of ``cmd``; its output to ``out``; ``src``:
+    the source tree it imports stepnc_graph from (default: this process's)."""
+    env = {**os.environ, "PYTHONPATH": src} if src else None
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     with open(out or os.devnull, "wb") as sink:
-        subprocess.run(cmd, stdout=sink, stderr=subprocess.PIPE, check=True)
+        subprocess.run(cmd, stdout=sink, stderr=subprocess.PIPE, check=True, env=env)
     wall = time.perf_counter() - started
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -60,6 +72,31 @@ def run(cmd: list[str], out: Path | None = None) -> dict[str, float]:
 
 def median(runs: list[dict[str, float]]) -> dict[str, float]:
     return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+
+
+def compare(cli: list[str], store: Path, graph: str, work: Path, repeat: int, baseline: str, full: bool) -> None:
+    """``plan --svg`` of the ``baseline`` source tree and of this code, alternating; their outputs
+    compared byte for byte (with ``full``, once, ``--format json --graphml`` too)."""
+    runs: dict[str, list[dict[str, float]]] = {"baseline": [], "this code": []}
+    for _ in range(repeat):
+        for name, src in (("baseline", baseline), ("this code", None)):
+            tag = name.replace(" ", "-")
+            runs[name].append(run([*cli, "plan", "--store", str(store), "--graph", graph, "--svg",
+                                   str(work / f"{tag}.svg")], work / f"{tag}.txt", src))
+    same = all((work / f"baseline.{e}").read_bytes() == (work / f"this-code.{e}").read_bytes() for e in ("svg", "txt"))
+    if full:
+        for name, src in (("baseline", baseline), ("this code", None)):
+            tag = name.replace(" ", "-")
+            run([*cli, "plan", "--store", str(store), "--graph", graph, "--format", "json", "--graphml",
+                 str(work / f"{tag}.graphml")], work / f"{tag}.json", src)
+        same = same and all((work / f"baseline.{e}").read_bytes() == (work / f"this-code.{e}").read_bytes()
+                            for e in ("json", "graphml"))
+    old, new = (statistics.median(r["cpu"] for r in runs[k]) for k in ("baseline", "this code"))
+    print(f"{'':>10} {'':>10} {'':>6}   plan --svg, {repeat} runs each, alternating: baseline "
+          f"{median(runs['baseline'])['wall']:.2f} s wall / {old:.2f} CPU, this code "
+          f"{median(runs['this code'])['wall']:.2f} / {new:.2f}: {new / old:.2f}x CPU; same output"
+          + (" (summary, SVG, JSON, GraphML)" if full else " (summary, SVG)") + f": {'yes' if same else 'NO'}",
+          flush=True)
 
 
 def child(store_dir: str, graph: str) -> None:
@@ -102,6 +139,11 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--real", type=Path, default=HERE.parent / "examples" / "shaft_two_setups.stp")
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
+    ap.add_argument("--baseline", metavar="SRC", help="an older source tree's src: its plan --svg beside this one's")
+    ap.add_argument("--no-full-compare", action="store_true",
+                    help="with --baseline: compare the summary and SVG only, not the JSON and GraphML")
+    ap.add_argument("--bytecode-cache", type=Path, metavar="DIR",
+                    help="let the children cache bytecode in DIR (as an installed package has it), an untimed run first")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -110,8 +152,13 @@ def main() -> None:
     from stepnc_graph.core.naming import default_graph_iri
 
     args.data.mkdir(parents=True, exist_ok=True)
+    if args.bytecode_cache:
+        os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+        os.environ["PYTHONPYCACHEPREFIX"] = str(args.bytecode_cache.resolve())
     cli = [sys.executable, "-m", "stepnc_graph.cli"]
-    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}")
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; Python {sys.version.split()[0]}; "
+          + ("PYTHONDONTWRITEBYTECODE set: each run compiles the modules no earlier run cached"
+             if os.environ.get("PYTHONDONTWRITEBYTECODE") else "bytecode cached"))
     floor = median([run([sys.executable, "-c", "import pyoxigraph, click"]) for _ in range(args.repeat)])
     print(f"start-up floor (python -c 'import pyoxigraph, click'): {floor['wall']:.2f} s wall, {floor['cpu']:.2f} s CPU")
     print(f"\n{'program':>10} {'instances':>10} {'steps':>6} | {'plan --svg':>17} | {'json + graphml':>17} | "
@@ -128,6 +175,10 @@ def main() -> None:
                 subprocess.run([*cli, "load", "--store", str(store), str(path)], check=True, capture_output=True)
                 graph = default_graph_iri(str(path))
                 svg = work / "plan.svg"
+                if args.bytecode_cache:  # the caches written, untimed
+                    for src in [None] + ([args.baseline] if args.baseline else []):
+                        run([*cli, "plan", "--store", str(store), "--graph", graph, "--svg", str(svg)], src=src)
+                    run([*cli, "query", "workplan-sequence", "--store", str(store), "--graph", graph])
                 plan = median([run([*cli, "plan", "--store", str(store), "--graph", graph, "--svg", str(svg)])
                                for _ in range(args.repeat)])
                 full = median([run([*cli, "plan", "--store", str(store), "--graph", graph, "--format", "json",
@@ -146,6 +197,8 @@ def main() -> None:
                       f"{inproc['svg']:8.2f}    | {query['wall']:7.2f} / {query['cpu']:6.2f} | "
                       f"{pic['width']:,.0f} x {pic['height']:,.0f} px, {drawn}, {pic['bytes'] / 1e3:,.0f} kB", flush=True)
                 verdicts.append((program, size, plan["cpu"]))
+                if args.baseline:
+                    compare(cli, store, graph, work, args.repeat, args.baseline, not args.no_full_compare)
             finally:
                 shutil.rmtree(work, ignore_errors=True)
     print(f"\ntarget: plan --svg within {TARGET:.0f} s (CPU, start-up included):")

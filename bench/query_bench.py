@@ -5,6 +5,7 @@
     python bench/query_bench.py --programs replicated --copies 3 --load-repeat 0 --rdflib-max 0
     mkdir /tmp/before && git archive HEAD~1 queries | tar -x -C /tmp/before   # an earlier library ...
     python bench/query_bench.py --baseline /tmp/before/queries                # ... timed beside this one
+    python bench/query_bench.py --programs replicated --load-repeat 0 --split   # where a query's time goes
 
 For each size and program, in one run. The programs (``--programs``, default both) are those of
 bench/generate.py: ``generated`` (``write()``: a turning program of one setup and a few tools,
@@ -36,6 +37,13 @@ the real program itself (``--real``) under its own graph: ``--graph`` queries ru
 * with ``--baseline DIR`` (a directory of ``.rq`` files, e.g. an earlier ``queries/``): each query
   of that library too, alternating with the current one query by query, each in its own process;
   the two results' SPARQL JSON are compared byte for byte (same rows in the same order).
+
+* with ``--split``: where each query's time goes (whole store, one child process per query, median of
+  ``--repeat`` after a warm-up, CPU of the querying thread): Oxigraph evaluating it without writing
+  a value (the query as a sub-SELECT of ``SELECT (COUNT(*) AS ?rows)``), evaluating it and writing
+  its SPARQL JSON in pyoxigraph (``QuerySolutions.serialize``, all in Rust), the project's
+  ``execute(...).serialize("json")`` (what the other figures time: the same JSON, plus the dataset,
+  the parameters and the warnings), and its CSV (``query --format csv``).
 
 Each library's query runs in a child process: a run over ``--query-timeout`` seconds is stopped
 and reported as ``>limit`` with the child's CPU time when stopped (start-up included) in
@@ -206,6 +214,65 @@ def child_queries(store_dir: str, directory: str, spec: str, repeat: int, graph:
                 repeat = 1
 
 
+def child_split(store_dir: str, spec: str, repeat: int) -> None:
+    """Where ``spec``'s time goes over the whole store (see the module's ``--split``): print one JSON
+    line of median CPU seconds of this thread, after a warm-up of each."""
+    import pyoxigraph as ox
+
+    from stepnc_graph.querying.query import PREFIXES, bind, dataset, execute, resolve
+    from stepnc_graph.store import GraphStore
+
+    name, _, params = spec.partition("?")
+    given = dict(pair.split("=", 1) for pair in params.split("&") if pair)
+    with GraphStore(store_dir) as store:
+        query = resolve(name)
+        options = {**dataset(store, None, query.library), "prefixes": PREFIXES,
+                   "substitutions": bind(store, query, given) or None}
+        head, select = query.text.split("\nSELECT", 1)
+        params = " ".join(f"?{p.name}" for p in query.params)  # a parameter is bound where it is SELECTed
+        counted = (f"{head}\nSELECT {params} (COUNT(*) AS ?rows) WHERE {{ SELECT{select}\n}}"
+                   + (f" GROUP BY {params}" if params else ""))
+        raw = store.oxigraph  # pyoxigraph itself, the project's layer left out
+
+        def rows() -> int:
+            return sum(int(row["rows"].value) for row in raw.query(counted, **options))
+
+        def rust_json() -> int:
+            return len(raw.query(query.text, **options).serialize(format=ox.QueryResultsFormat.JSON) or b"")
+
+        def project(fmt: str) -> int:
+            return len(execute(store, query, given).serialize(fmt))
+
+        out: dict[str, Any] = {"name": spec}
+        for key, fn in (("evaluate", rows), ("rust_json", rust_json), ("execute_json", lambda: project("json")),
+                        ("execute_csv", lambda: project("csv"))):
+            result, times = fn(), []  # the warm-up
+            for _ in range(repeat):
+                cpu = time.thread_time()
+                fn()
+                times.append(time.thread_time() - cpu)
+            out[key] = statistics.median(times)
+            out.setdefault("rows", result)
+        print(json.dumps(out), flush=True)
+
+
+def measure_split(store_dir: Path, repeat: int) -> None:
+    """Print where each library query's time goes (``--split``), one child process per query."""
+    print("\nwhere the time goes, whole store (CPU ms, median): evaluation alone (COUNT of the rows), + Oxigraph "
+          "writing SPARQL JSON (Rust), the project's execute + JSON (the timed path above), its CSV")
+    print(f"  {'query':58} {'rows':>6} {'evaluate':>9} {'Rust JSON':>10} {'execute+JSON':>13} {'CSV':>8}  "
+          f"{'evaluation share':>16}", flush=True)
+    for spec in specs():
+        try:
+            [row] = run_child("split", str(store_dir), spec, str(repeat))
+        except (RuntimeError, subprocess.TimeoutExpired) as exc:
+            print(f"  {spec:58} failed: {exc}", flush=True)
+            continue
+        ms = {k: row[k] * 1000 for k in ("evaluate", "rust_json", "execute_json", "execute_csv")}
+        print(f"  {spec:58} {row['rows']:>6} {ms['evaluate']:9.1f} {ms['rust_json']:10.1f} {ms['execute_json']:13.1f} "
+              f"{ms['execute_csv']:8.1f}  {ms['evaluate'] / ms['execute_json']:15.0%}", flush=True)
+
+
 def _cpu_seconds(pid: int) -> float | None:
     """CPU seconds a running process has used so far (Linux /proc), None where unknown."""
     try:
@@ -372,6 +439,8 @@ def main() -> None:
     ap.add_argument("--rdflib-max", type=int, default=100_000,
                     help="largest store (instances, all copies) also run in rdflib; 0: never")
     ap.add_argument("--rdflib-timeout", type=float, default=120, help="seconds per rdflib query")
+    ap.add_argument("--split", action="store_true",
+                    help="also print where each query's time goes: evaluation, Oxigraph's JSON, the project's output")
     ap.add_argument("--data", type=Path, default=Path(tempfile.gettempdir()) / "stepnc-graph-bench")
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -381,6 +450,8 @@ def main() -> None:
             child_load(*rest)
         elif kind == "queries":
             child_queries(rest[0], rest[1], rest[2], int(rest[3]), rest[4] if len(rest) > 4 else None)
+        elif kind == "split":
+            child_split(rest[0], rest[1], int(rest[2]))
         else:
             child_rdflib(rest[0], rest[1], float(rest[2]), rest[3:])
         return
@@ -415,6 +486,8 @@ def main() -> None:
                 title += f" and {args.real.name} ({row['instances']} instances)"
                 target = (0.2 if size <= 100_000 else 1.0) if args.copies == 1 else None
                 ox_times = measure_queries(title, store_dir, args.repeat, args.query_timeout, args.baseline, target)
+                if args.split:
+                    measure_split(store_dir, args.repeat)
                 if instances <= args.rdflib_max:
                     stream_rdflib(store_dir, graphs + [one], args.rdflib_timeout, ox_times)
                 measure_queries(f"{args.real.name} alone in that store (--graph {one})", store_dir, args.repeat,

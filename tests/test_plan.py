@@ -108,6 +108,25 @@ def test_the_plan_reads_what_a_look_up_per_thing_reads(path: Path) -> None:
     assert plan.steps == build_plan(store, network=False).steps  # the steps do not depend on the graph
 
 
+@pytest.mark.parametrize("tool", ["TURNING_MACHINE_TOOL('T01 CNMG 120408',#101,(#103),120.,25.,$,7)",
+                                  "CARTESIAN_POINT('T01',(0.,0.,0.))"], ids=["raw", "a-point"])
+def test_a_step_naming_a_thing_of_an_unexpected_class_reads_it_as_a_look_up_does(tmp_path: Path, tool: str) -> None:
+    """The plan reads the classes of what its steps name among the classes a tool, a workingstep, ... can
+    have; a tool the file gets wrong (a raw instance, or a point) is looked up: the same #id and class."""
+    text = EXAMPLE.read_text().replace("#100=TURNING_MACHINE_TOOL('T01 CNMG 120408',#101,(#103),120.,25.,$);",
+                                       f"#100={tool};")
+    path = tmp_path / "odd_tool.stp"
+    path.write_text(text)
+    store = sg.open_store(memory=True)
+    sg.load(store, [path], lenient=True)
+    plan = build_plan(store)
+    found = [(s.order, s.workingstep, s.workplan, s.setup, s.tool, s.operation, s.features, s.kind, s.starts_root)
+             for s in plan.steps]
+    assert found == _reference_steps(store, plan.program)
+    assert plan.steps[0].tool is not None and plan.steps[0].tool.ref == "#100"
+    assert plan.steps[0].tool.cls in ("RawInstance", "cartesian_point")
+
+
 def test_the_graph_holds_the_plan_structure() -> None:
     _, plan = plan_of(EXAMPLE)
     g = plan.graph

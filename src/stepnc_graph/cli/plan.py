@@ -58,7 +58,7 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     precedence errors (finishing before roughing on a feature), tools shared
     across setups and the critical (most used) tool. Exit 2 for bad input.
     """
-    from stepnc_graph.workplan.plan import PlanError, build_plan
+    from stepnc_graph.workplan.plan import PlanError, PlanPicture, build_plan
     from stepnc_graph.workplan.plan import png as to_png
 
     with open_programs([program] if program is not None else [], store_path, memory, remote, lenient) as store:
@@ -68,8 +68,9 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
             plan = build_plan(store, picked, network=bool(graphml) or fmt == "json")
         except PlanError as exc:
             _fail(str(exc))
+    drawn = PlanPicture(plan) if (svg or png) else None  # one picture: its page and its page count
     try:
-        picture = plan.svg(page) if (svg or png) else ""
+        picture = drawn.render(page) if drawn is not None else ""
     except PlanError as exc:
         _fail(str(exc))
     try:
@@ -90,8 +91,8 @@ def plan_cmd(program: Path | None, store_path: Path | None, memory: bool, remote
     for path in (graphml, svg, png):
         if path:
             err.print(f"wrote {escape(str(path))}")
-    if (svg or png) and plan.pages() > 1:
-        err.print(f"the picture is page {page} of {plan.pages()} (runs of steps with one setup and one tool); "
+    if drawn is not None and drawn.pages() > 1:
+        err.print(f"the picture is page {page} of {drawn.pages()} (runs of steps with one setup and one tool); "
                   "--page N shows another")
     sys.exit(EXIT_OK)
 

@@ -15,7 +15,14 @@ from typing import TYPE_CHECKING
 import pyoxigraph as ox
 
 from stepnc_graph.core.errors import listed_by, option
-from stepnc_graph.core.naming import STEPNC_NS, VOCABULARY_GRAPH, derived_graph_iri, instance_id, program_graphs
+from stepnc_graph.core.naming import (
+    STEPNC_NS,
+    VOCABULARY_GRAPH,
+    derived_graph_iri,
+    instance_id,
+    instance_prefix,
+    program_graphs,
+)
 from stepnc_graph.querying.query import PREFIXES
 from stepnc_graph.workplan.analyses import Plan
 from stepnc_graph.workplan.model import NO_TOOL, NO_TOOL_BODY, PlanError, Step, Technology, Thing
@@ -77,7 +84,8 @@ SELECT ?s ?p ?o WHERE {
 #: the members of program structures but workplans (``?i``: the branch of an if statement, else 0)
 _MEMBERS = """
 SELECT ?s ?o ?i WHERE {
-  { ?s stepnc:parallel.branches|stepnc:non_sequential.its_elements|stepnc:selective.its_elements ?o BIND(0 AS ?i) }
+  { ?s stepnc:parallel.branches ?o BIND(0 AS ?i) } UNION { ?s stepnc:non_sequential.its_elements ?o BIND(0 AS ?i) }
+  UNION { ?s stepnc:selective.its_elements ?o BIND(0 AS ?i) }
   UNION { ?s stepnc:if_statement.true_branch ?o BIND(1 AS ?i) }
   UNION { ?s stepnc:if_statement.false_branch ?o BIND(2 AS ?i) }
   UNION { ?s stepnc:while_statement.body ?o BIND(1 AS ?i) }
@@ -91,21 +99,30 @@ SELECT ?cell ?i ?o ?rest WHERE {
   { SELECT ?cell ?o WHERE { ?cell rdf:first ?o } }
   { SELECT ?cell ?rest WHERE { ?cell rdf:rest ?rest } }
 }"""
-#: what the plan shows of a thing (its_id, #id and class as the program's graph types it; a row per
+#: what the plan shows of a thing (its_id and class as the program's graph types it; a row per
 #: class), for the things ``NAMED`` names; the class as its place in ``CLASSES`` (``(<class> k)``
-#: pairs: the classes the program's graph types instances with), a number, not an IRI, for each of
-#: 30,000 things (0.1 CPU-s less at 100k instances)
+#: pairs), a number, not an IRI, for each of 30,000 things (0.1 CPU-s less at 100k instances). Only
+#: the file's instances have a class there (every one has: a class of its entity, or ``p21:Raw``),
+#: and each such IRI is the graph's ``i<#id>`` (:func:`~stepnc_graph.core.naming.instance_iri`): the
+#: ``#id`` is read from the IRI, not by joining the program's 100,000 ``p21:id`` values (0.1 CPU-s).
+#: ``CLASSES`` holds the classes the things are expected to have (``_STEP_ROOTS``), not those of the
+#: points and placements that make most of a program (0.08 CPU-s); a thing of none of them (or not
+#: in the program) is looked up (:func:`_look_up`).
 _THINGS = """
-SELECT ?x ?label ?n ?k WHERE {
+SELECT ?x ?label ?k WHERE {
   { SELECT DISTINCT ?x WHERE { NAMED } }
-  { SELECT ?x ?n WHERE { GRAPH ?g { ?x p21:id ?n } } }
   OPTIONAL { { SELECT ?x ?k WHERE { VALUES (?cls ?k) { CLASSES } GRAPH ?g { ?x a ?cls } } } }
   OPTIONAL { { SELECT ?x ?label WHERE { ?x attr:its_id ?label } } }
 }"""
 #: the classes the program's graph types instances with (the derived layer counts each; a scan of
 #: the program's 100,000 types took 0.07 CPU-s)
 _COUNTED = "SELECT DISTINCT ?cls WHERE { ?count sga:countedClass ?cls }"
-_STEP_THINGS = "?s sga:executes|sga:workplan|sga:setup|sga:tool|sga:feature|attr:its_operation ?x"
+#: what the steps name, as a UNION (the same as a property path of alternatives, ``sga:executes|...``,
+#: which Oxigraph evaluates four times slower: 0.1 CPU-s at 100k instances); and the entities whose
+#: subclasses they are (an executable: a workingstep or a workplan, ...)
+_STEP_THINGS = ("{ ?s sga:executes ?x } UNION { ?s sga:workplan ?x } UNION { ?s sga:setup ?x } UNION { ?s sga:tool ?x } "
+                "UNION { ?s sga:feature ?x } UNION { ?s attr:its_operation ?x }")
+_STEP_ROOTS = ("executable", "setup", "machining_tool", "manufacturing_feature", "operation")
 #: the program's projects (its_id, #id): the plan's title
 _PROJECTS = "SELECT ?n ?label WHERE { GRAPH ?g { ?p stepnc:project.its_id ?label ; p21:id ?n } }"
 #: the file the program was read from (dcterms:source, on the program's graph node)
@@ -142,6 +159,7 @@ SELECT ?s ?p ?o WHERE {
 #: the XML Schema datatypes of numbers
 _NUMERIC = {f"http://www.w3.org/2001/XMLSchema#{t}" for t in ("double", "float", "decimal", "integer", "int", "long")}
 _MORE_THINGS = "{ ?s attr:its_technology ?x } UNION { ?x stepnc:project.main_workplan ?w }"
+_MORE_ROOTS = ("technology", "project")
 #: the same for a few things by IRI
 _THING = """
 SELECT ?x ?label ?n ?cls WHERE { GRAPH ?g { ?x p21:id ?n OPTIONAL { ?x a ?cls } } OPTIONAL { ?x attr:its_id ?label } }"""
@@ -153,13 +171,32 @@ def _thing(info: dict[str, Thing], iri: str | None) -> Thing | None:
     return info.get(iri) or Thing(iri, "", "", "")
 
 
-def _things(store: Store, graph: str, named: str, info: dict[str, Thing]) -> None:
-    """Add the Things ``named`` names (a SPARQL pattern binding ``?x``) to ``info``."""
+def _things(store: Store, graph: str, named: str, roots: tuple[str, ...], info: dict[str, Thing]) -> None:
+    """Add the Things ``named`` names (a SPARQL pattern binding ``?x``; instances of ``roots`` and
+    their subclasses, as a rule) to ``info``: those the program's graph holds (the others stay out
+    of ``info``: no ``#id``, label or class). A thing of several classes (a complex instance) gets
+    one, of ``roots`` if it has one."""
     classes = sorted({cls for (cls,) in _rows(store, graph, _COUNTED)})
-    values = " ".join(f"(<{cls}> {k})" for k, cls in enumerate(classes))
+    expected = set(_class_list(store, graph, roots))
+    values = " ".join(f"(<{cls}> {k})" for k, cls in enumerate(classes) if cls in expected) or "(<urn:none> 0)"
     names = [cls.rsplit("#", 1)[-1] for cls in classes]
-    for x, label, n, k in _rows(store, graph, _THINGS.replace("NAMED", named).replace("CLASSES", values)):
-        info[x] = Thing(x, label, f"#{n}" if n else "", names[int(k)] if k else "")
+    head = instance_prefix(graph) + "i"
+    odd: list[str] = []
+    for x, label, k in _rows(store, graph, _THINGS.replace("NAMED", named).replace("CLASSES", values)):
+        digits = x[len(head):] if k and x.startswith(head) else ""
+        if digits.isdigit() and digits.isascii():
+            info[x] = Thing(x, label, f"#{int(digits)}", names[int(k)])
+        else:  # of another class, not in the program, or not an IRI the loader mints
+            odd.append(x)
+    if odd:
+        _look_up(store, graph, odd, info)
+
+
+def _look_up(store: Store, graph: str, iris: list[str], info: dict[str, Thing]) -> None:
+    """Add the Things ``iris`` (those the program's graph gives an ``#id``) to ``info``, a look-up each."""
+    values = " ".join(f"<{x}>" for x in iris)
+    for x, label, n, cls in _rows(store, graph, _THING.replace("WHERE {", f"WHERE {{ VALUES ?x {{ {values} }}", 1)):
+        info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
 
 
 def _elements(store: Store, graph: str) -> list[tuple[str, str, int]]:
@@ -229,8 +266,14 @@ def _technologies(store: Store, graph: str) -> dict[str, Technology]:
 def _classes(store: Store, graph: str, root: str) -> str:
     """The vocabulary's classes under the entity ``root`` (and their older editions' names), as a
     SPARQL ``VALUES`` list."""
-    found = _rows(store, graph, _CLASSES.replace("ROOT", f"<{STEPNC_NS}{root}>"))
-    return " ".join(sorted({f"<{cls}>" for (cls,) in found})) or "<urn:none>"
+    return " ".join(f"<{cls}>" for cls in _class_list(store, graph, (root,))) or "<urn:none>"
+
+
+def _class_list(store: Store, graph: str, roots: tuple[str, ...]) -> list[str]:
+    """The vocabulary's classes under the entities ``roots`` (and their older editions' names), sorted."""
+    # a query a root: the path from a constant (from a VALUES variable, plan failed on Virtuoso 7:
+    # tests/test_live_stores.py)
+    return sorted({cls for root in roots for (cls,) in _rows(store, graph, _CLASSES.replace("ROOT", f"<{STEPNC_NS}{root}>"))})
 
 
 def _number(text: str) -> str:
@@ -257,14 +300,15 @@ def _tool_bodies(store: Store, graph: str) -> dict[str, str]:
     return {tool: " & ".join(sorted(classes[body])) for tool, body in bodies.items() if classes.get(body)}
 
 
-def _steps(store: Store, graph: str, info: dict[str, Thing]) -> tuple[list[Step], list[tuple[str, str, str]]]:
+def _steps(store: Store, graph: str, info: dict[str, Thing],
+           network: bool = True) -> tuple[list[Step], list[tuple[str, str, str]]]:
     """The execution steps in order, with the things they name, whether they rough or finish and
-    their tool's body type (:func:`_add_technologies` adds the technologies); and the workingsteps'
-    ``feature`` and ``operation`` edges (for the graph)."""
+    their tool's body type (:func:`_add_technologies` adds the technologies); and, for the
+    ``network``, the workingsteps' ``feature`` and ``operation`` edges."""
     features: dict[str, set[str]] = defaultdict(set)
     for ws, f in _rows(store, graph, _FEATURES):
         features[ws].add(f)
-    edges = {(ws, "feature", f) for ws, found in features.items() for f in found}
+    edges = {(ws, "feature", f) for ws, found in features.items() for f in found} if network else set()
     grouped: dict[int, list[list[str]]] = defaultdict(list)
     for row in _rows(store, graph, _STEPS):
         grouped[int(row[0])].append(row)
@@ -277,7 +321,8 @@ def _steps(store: Store, graph: str, info: dict[str, Thing]) -> tuple[list[Step]
         # operation that both roughs and finishes counts as roughing
         op = max(r[5] for r in rows)
         kinds = {r[6] for r in rows if r[5] == op}
-        edges.update((ws, "operation", r[5]) for r in rows if r[5])
+        if network:
+            edges.update((ws, "operation", r[5]) for r in rows if r[5])
         steps.append(Step(order, info.get(ws) or Thing(ws, "", "", ""), _thing(info, wp), _thing(info, setup),
                           _thing(info, tool), _thing(info, op),
                           [f for f in (_thing(info, x) for x in sorted(features.get(ws, ()))) if f is not None],
@@ -319,22 +364,20 @@ def build_plan(store: Store, graph: str | None = None, *, network: bool = True) 
     if graph not in programs:
         raise PlanError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
     info: dict[str, Thing] = {}
-    _things(store, graph, _STEP_THINGS, info)
-    steps, edges = _steps(store, graph, info)
+    _things(store, graph, _STEP_THINGS, _STEP_ROOTS, info)
+    steps, edges = _steps(store, graph, info, network)
     projects, source = _projects(store, graph), next((src for (src,) in _rows(store, graph, _SOURCE)), None)
     if network or len(steps) <= PlanPicture.DETAIL:
         _add_technologies(store, graph, steps)
     if not network:
         return Plan(graph, steps, projects=projects, source=source)
-    _things(store, graph, _MORE_THINGS, info)
+    _things(store, graph, _MORE_THINGS, _MORE_ROOTS, info)
     edges += sorted({(s, p, o) for s, p, o in _rows(store, graph, _MORE_EDGES)}, key=lambda e: (e[1], e))
     elements = _elements(store, graph)
     others = sorted({x for s, o, _ in elements for x in (s, o)
                      if x not in info and x.startswith(("http:", "https:")) and ">" not in x})
     if others:
-        values = " ".join(f"<{x}>" for x in others)
-        for x, label, n, cls in _rows(store, graph, _THING.replace("WHERE {", f"WHERE {{ VALUES ?x {{ {values} }}", 1)):
-            info[x] = Thing(x, label, f"#{n}" if n else "", cls.rsplit("#", 1)[-1])
+        _look_up(store, graph, others, info)
     return Plan(graph, steps, _network(graph, steps, info, edges, elements), projects=projects, source=source)
 
 
