@@ -19,6 +19,7 @@ from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH
 from stepnc_graph.store.answers import _DOUBLE, _XSD_DOUBLE, RemoteError, _number
 from stepnc_graph.store.contract import Chunk
 from stepnc_graph.store.contract import Companion, Shadow
+from stepnc_graph.store.remote_difference import new_load_id, replace_by_difference, token_graph, token_line
 
 if TYPE_CHECKING:
     from stepnc_graph.store.remote import RemoteStore
@@ -155,7 +156,7 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
     program staged in the client 3.4; a replacement 24-31 against 11-16."""
     from stepnc_graph.store import GraphStore
 
-    staging, target = _staging_names(store, graph, companions)
+    staging, target = _staging_names(store, graph, [*companions, token_graph(graph)])
     doubles: set[str] = set()
 
     def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
@@ -170,6 +171,7 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
             local._bulk_load(staging[graph], counted(chunks), target)
             if before_commit is not None:
                 before_commit(target)
+            local.add_ntriples(staging[token_graph(graph)], token_line(graph, new_load_id()))
         finally:
             store._local = None
         _probe_doubles(store, graph, {d.encode() for d in doubles})
@@ -178,7 +180,8 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
 #: quads of a replacement sent as one SPARQL Update at most: Oxigraph's server takes update bodies
 #: of 128 MiB at most (``SPARQL body payloads are limited to 134217728 bytes``), and a replicated
 #: real program takes ~158 bytes a quad there (a 100k-instance one's replacement: ~220 MB). A larger
-#: replacement goes into staging graphs by one N-Quads POST and is swapped in (:func:`_swap`)
+#: replacement goes into staging graphs by one N-Quads POST and is swapped in (:func:`_swap`); a
+#: replacement by difference of more lines is written so too
 UPDATE_QUADS = 300_000
 
 
@@ -199,7 +202,10 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> N
     main = next(iter(staging))
     want = local.count(staging[main])
     if existing:
-        _replace(store, local, staging)
+        store.last_removal = "difference"
+        if (whole := replace_by_difference(store, local, staging, UPDATE_QUADS)) is not None:
+            store.last_removal = f"whole: {whole}"
+            _replace(store, local, staging)
     else:
         try:
             store._post_dataset(_NQuadsBody(local, names))
