@@ -19,7 +19,13 @@ from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH
 from stepnc_graph.store.answers import _DOUBLE, _XSD_DOUBLE, RemoteError, _number
 from stepnc_graph.store.contract import Chunk
 from stepnc_graph.store.contract import Companion, Shadow
-from stepnc_graph.store.remote_difference import new_load_id, replace_by_difference, token_graph, token_line
+from stepnc_graph.store.remote_difference import (
+    OldVersion,
+    new_load_id,
+    replace_by_difference,
+    token_graph,
+    token_line,
+)
 
 if TYPE_CHECKING:
     from stepnc_graph.store.remote import RemoteStore
@@ -165,6 +171,7 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
                 doubles.update(_DOUBLE_TEXT.findall(chunk))
             yield chunk
 
+    before = OldVersion(store, [graph, *companions, token_graph(graph)])  # read while the load is staged
     with GraphStore(None) as local:
         store._local = (local, staging)
         try:
@@ -175,7 +182,7 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
         finally:
             store._local = None
         _probe_doubles(store, graph, {d.encode() for d in doubles})
-        _commit_from(store, local, staging)
+        _commit_from(store, local, staging, before)
 
 #: quads of a replacement sent as one SPARQL Update at most: Oxigraph's server takes update bodies
 #: of 128 MiB at most (``SPARQL body payloads are limited to 134217728 bytes``), and a replicated
@@ -185,7 +192,7 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
 UPDATE_QUADS = 300_000
 
 
-def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> None:
+def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str], before: OldVersion) -> None:
     """Write the staged graphs of ``local`` into the server (see :func:`replace_from_client`).
 
     Graphs that do not exist yet: one N-Quads POST under their own names. A replacement:
@@ -203,7 +210,7 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> N
     want = local.count(staging[main])
     if existing:
         store.last_removal = "difference"
-        if (whole := replace_by_difference(store, local, staging, UPDATE_QUADS)) is not None:
+        if (whole := replace_by_difference(store, local, staging, UPDATE_QUADS, before)) is not None:
             store.last_removal = f"whole: {whole}"
             _replace(store, local, staging)
     else:
