@@ -13,8 +13,9 @@ Jena Fuseki, GraphDB, Virtuoso, Amazon Neptune ...):
 
 **A load is never half visible.** On a server that loads an N-Quads POST in one transaction
 (:data:`_DATASET_POST`) the load is staged in the client, in an in-memory store, and written by
-one request: an N-Quads POST of graphs that do not exist yet, or one SPARQL Update that drops and
-inserts a replacement. Elsewhere its N-Triples go in bounded batches into fresh staging graphs of
+one request: an N-Quads POST of graphs that do not exist yet; for a replacement, one SPARQL Update
+of what changed alone, conditional on the last load's id
+(:mod:`~stepnc_graph.store.remote_difference`), else one that drops and inserts the graphs. Elsewhere its N-Triples go in bounded batches into fresh staging graphs of
 the store, and the file's graph and its companions are replaced by one SPARQL Update request
 (``DROP SILENT GRAPH g ; ADD SILENT GRAPH staging TO g``), which a store runs as one transaction.
 An interrupted load leaves the previous graph as it was, and at most a staging graph that a later

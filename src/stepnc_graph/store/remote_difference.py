@@ -40,6 +40,7 @@ import pyoxigraph as ox
 
 from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH
 from stepnc_graph.store.difference import BlankMatch
+from stepnc_graph.store.errors import StoreError
 from stepnc_graph.store.kept import BLANK_OBJECT
 
 if TYPE_CHECKING:
@@ -101,7 +102,8 @@ class OldVersion:
             self._error = exc
 
     def read(self) -> tuple[str | None, dict[str, list[bytes]]]:
-        """The load id and the lines of each graph (no lines: no load id); the reading's error."""
+        """The load id and the lines of each graph (no lines: no load id). A store's error is
+        raised (the caller then replaces the graphs whole, which says it again if it lasts)."""
         self._thread.join()
         if self._error is not None:
             raise self._error
@@ -123,7 +125,10 @@ def replace_by_difference(store: RemoteStore, local: Any, staging: dict[str, str
         return "no load id written"
     if VOCABULARY_GRAPH in staging:
         return "the vocabulary graph is rewritten"
-    old_id, old = before.read()
+    try:
+        old_id, old = before.read()
+    except StoreError as exc:
+        return f"the old version could not be read ({exc})"
     if old_id is None:
         return "no load id to compare with"
     if set(old) != set(staging):
@@ -212,12 +217,14 @@ class Paths:
         """The variable bound to old blank node ``label`` (its path added to the WHERE clause),
         None if it has no path."""
         chain: list[bytes] = []
+        seen: set[bytes] = set()
         node = label
         while node not in self._bound:
             up = self.parent.get(node)
-            if up is None or node in chain:
+            if up is None or node in seen:  # no path, or a cycle of blank nodes
                 return None
             chain.append(node)
+            seen.add(node)
             if not up[0].startswith(b"_:"):
                 break
             node = up[0][2:]

@@ -152,7 +152,9 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
     them, :func:`_probe_doubles`) and whether the graphs exist. Graphs that do not exist yet
     are written under their own names by one N-Quads POST (one transaction: a failure, a
     client killed mid-request or a server killed mid-load leaves nothing); a replacement by one
-    SPARQL Update that drops the graphs and inserts the new ones (:func:`_commit_from`). One
+    SPARQL Update of what changed since the old version, read meanwhile (:class:`OldVersion`,
+    :func:`replace_by_difference`), or else one that drops the graphs and inserts the new ones
+    (:func:`_commit_from`). Every load records its id in the program's :func:`token_graph`. One
     document holds every graph, so a blank node the derived layer shares with the program stays
     one node (separate documents would split it; the in-memory store names blank nodes anew, so
     the program's text as the loader wrote it cannot go first).
@@ -195,8 +197,9 @@ UPDATE_QUADS = 300_000
 def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str], before: OldVersion) -> None:
     """Write the staged graphs of ``local`` into the server (see :func:`replace_from_client`).
 
-    Graphs that do not exist yet: one N-Quads POST under their own names. A replacement:
-    :func:`_replace`. The main graph's triple count is read back: a server that answered but did
+    Graphs that do not exist yet: one N-Quads POST under their own names. A replacement: by
+    difference (:func:`replace_by_difference`), else whole (:func:`_replace`); ``last_removal``
+    says which, and why whole. The main graph's triple count is read back: a server that answered but did
     not load is an error, never a load reported done.
 
     A POST adds to what a graph holds, so two clients creating the same graph at the same moment
