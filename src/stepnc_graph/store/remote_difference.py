@@ -32,7 +32,7 @@ import tempfile
 import threading
 import uuid
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -52,9 +52,6 @@ LOAD_ID = STAGING + "loadId"
 #: a difference of more lines than this share of the new version's is written whole instead: the
 #: update would then cost about what the full replacement costs
 MOST_CHANGED = 0.5
-#: nor one whose update is longer than this: Virtuoso 7 refuses an update text over 10 MB
-#: ("The STRING session in string_output_string is longer than 10Mb", found by trying)
-UPDATE_BYTES = 8 << 20
 
 
 def token_graph(graph: str) -> str:
@@ -87,9 +84,8 @@ class OldVersion:
     lines read after another client's write go with an id that the update's condition then
     finds gone."""
 
-    def __init__(self, store: RemoteStore, names: list[str], normalize: bool = False) -> None:
+    def __init__(self, store: RemoteStore, names: list[str]) -> None:
         self.names = names
-        self.normalize = normalize
         self.load_id: str | None = None
         self.lines: dict[str, list[bytes]] = {}
         self._error: BaseException | None = None
@@ -101,7 +97,7 @@ class OldVersion:
             with reader:
                 self.load_id = last_load_id(reader, self.names[0])
                 if self.load_id is not None:
-                    self.lines = {name: _lines(reader.ntriples(name), self.normalize) for name in self.names}
+                    self.lines = {name: _lines(reader.ntriples(name)) for name in self.names}
         except BaseException as exc:  # noqa: BLE001 -- raised by read()
             self._error = exc
 
@@ -114,12 +110,11 @@ class OldVersion:
         return self.load_id, self.lines
 
 
-def replace_by_difference(store: RemoteStore, staged: Callable[[str], list[bytes]], staging: dict[str, str],
-                          most: int, before: OldVersion) -> str | None:
-    """Make the graphs of ``staging`` (name in the store -> staging name; the program's graph
-    first, its :func:`token_graph` among them) hold the N-Triples lines ``staged`` gives for their
-    staging names by writing only what changed since ``before`` (see the module docstring), in
-    one update of at most ``most`` lines and :data:`UPDATE_BYTES`.
+def replace_by_difference(store: RemoteStore, local: Any, staging: dict[str, str], most: int,
+                          before: OldVersion) -> str | None:
+    """Make the graphs of ``staging`` (name in the store -> staged name in ``local``; the program's
+    graph first, its :func:`token_graph` among them) what ``local`` holds by writing only what
+    changed since ``before`` (see the module docstring), in one update of at most ``most`` lines.
     None once done; else why the caller must replace them whole, having changed nothing (or what
     another client's load then overwrote): no load id to compare with, the vocabulary graph
     rewritten, most lines changed, an old blank node without a path, or another client wrote in
@@ -138,7 +133,7 @@ def replace_by_difference(store: RemoteStore, staged: Callable[[str], list[bytes
         return "no load id to compare with"
     if set(old) != set(staging):
         return "other graphs than those read"
-    new = {name: staged(tmp) for name, tmp in staging.items()}
+    new = {name: _lines(_dump(local, tmp)) for name, tmp in staging.items()}
     match = _match(old[main], new[main])
     changed = {name: (_difference(old[name], new[name], match)) for name in staging}
     lines = sum(len(gone) + len(came) for gone, came in changed.values())
@@ -148,8 +143,6 @@ def replace_by_difference(store: RemoteStore, staged: Callable[[str], list[bytes
     update = paths.update(main, changed, old_id)
     if update is None:
         return "a changed line names a blank node without a path"
-    if len(update) > UPDATE_BYTES:
-        return "most lines changed"
     store.update(update)
     new_id = new[tokens][0].split(b'"')[1].decode("utf-8")
     if last_load_id(store, main) != new_id:
@@ -171,25 +164,14 @@ def _labels(lines: Iterable[bytes]) -> set[bytes]:
     return found
 
 
-def _lines(text: bytes, normalize: bool = False) -> list[bytes]:
-    """N-Triples text as lines; ``normalize``: as Oxigraph writes them (one space between the
-    terms: Virtuoso writes tabs), blank node labels and lexical forms kept."""
-    if normalize and text:
-        text = ox.serialize(ox.parse(text, ox.RdfFormat.N_TRIPLES), format=ox.RdfFormat.N_TRIPLES) or b""
+def _lines(text: bytes) -> list[bytes]:
     return text.splitlines(keepends=True)
 
 
-def dumped(local: Any) -> Callable[[str], list[bytes]]:
-    """The lines of a graph of the in-memory store ``local`` (none: no such graph)."""
-    def lines(staged: str) -> list[bytes]:
-        quads = local.oxigraph.quads_for_pattern(None, None, None, ox.NamedNode(staged))
-        return _lines(ox.serialize((q.triple for q in quads), format=ox.RdfFormat.N_TRIPLES) or b"")
-    return lines
-
-
-def read_back(store: RemoteStore) -> Callable[[str], list[bytes]]:
-    """The lines of a staging graph of ``store`` (its GET), as Oxigraph writes them."""
-    return lambda staged: _lines(store.ntriples(staged), normalize=True)
+def _dump(local: Any, staged: str) -> bytes:
+    """The staged graph as N-Triples (empty: no such graph)."""
+    quads = local.oxigraph.quads_for_pattern(None, None, None, ox.NamedNode(staged))
+    return ox.serialize((q.triple for q in quads), format=ox.RdfFormat.N_TRIPLES) or b""
 
 
 def _match(old: list[bytes], new: list[bytes]) -> BlankMatch:

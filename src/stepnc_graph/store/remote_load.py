@@ -21,9 +21,7 @@ from stepnc_graph.store.contract import Chunk
 from stepnc_graph.store.contract import Companion, Shadow
 from stepnc_graph.store.remote_difference import (
     OldVersion,
-    dumped,
     new_load_id,
-    read_back,
     replace_by_difference,
     token_graph,
     token_line,
@@ -77,13 +75,8 @@ def _staging_names(store: "RemoteStore", graph: str, companions: Sequence[str]) 
 def replace_in_store(store: "RemoteStore", graph: str, chunks: Iterable[Chunk],
                       before_commit: Callable[[Callable[[str], str]], None] | None,
                       companions: Sequence[str]) -> None:
-    """Upload into staging graphs of the store, then make them the graphs: a replacement by
-    difference (:func:`replace_by_difference`: the staging graphs and the old version read, what
-    changed written by one conditional update), else one SPARQL Update request that swaps them
-    in. The load's id goes into a staging graph of its :func:`token_graph`."""
-    tokens = token_graph(graph)
-    staging, target = _staging_names(store, graph, [*companions, tokens])
-    before = OldVersion(store, [graph, *companions, tokens], normalize=True)  # read while the load is staged
+    """Upload into staging graphs of the store, then swap them in with one SPARQL Update request."""
+    staging, target = _staging_names(store, graph, companions)
     doubles: set[bytes] = set()
     try:
         for name, body in _batches(chunks, BATCH_BYTES):
@@ -95,15 +88,7 @@ def replace_in_store(store: "RemoteStore", graph: str, chunks: Iterable[Chunk],
         _probe_doubles(store, graph, doubles)
         if before_commit is not None:
             before_commit(target)
-        store._post_graph(staging[tokens], token_line(graph, new_load_id()).encode("utf-8"))
-        store.last_removal = None
-        if store.has_graph(graph):
-            store.last_removal = "difference"
-            if (whole := replace_by_difference(store, read_back(store), staging, UPDATE_QUADS, before)) is not None:
-                store.last_removal = f"whole: {whole}"
-                _swap(store, staging)
-        else:
-            _swap(store, staging)
+        _swap(store, staging)
     except BaseException:
         store._drop_quietly(staging.values())
         raise
@@ -228,7 +213,7 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str], befo
     want = local.count(staging[main])
     if existing:
         store.last_removal = "difference"
-        if (whole := replace_by_difference(store, dumped(local), staging, UPDATE_QUADS, before)) is not None:
+        if (whole := replace_by_difference(store, local, staging, UPDATE_QUADS, before)) is not None:
             store.last_removal = f"whole: {whole}"
             _replace(store, local, staging)
     else:
