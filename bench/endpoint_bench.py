@@ -103,9 +103,11 @@ def edited(program: Path, out: Path) -> Path:
     """``program`` edited as a user edits one: three values changed (two coordinates, a workingstep's
     name) and one instance added; under the same file name (in ``out``), so it replaces the program."""
     text = program.read_text()
-    for was, now in (("(0.,0.,-150.)", "(0.,0.,-151.)"), ("(0.,0.,50.)", "(0.,0.,55.)"),
-                     ("'WS3 OD50 ROUGH'", "'WS3 OD50 ROUGHING'")):
-        text = text.replace(was, now, 1)
+    for was, now in ((r"\(0\.0?,0\.0?,-150\.0?\)", "(0.,0.,-151.)"), (r"\(0\.0?,0\.0?,50\.0?\)", "(0.,0.,55.)"),
+                     (r"'WS3 OD50 ROUGH'", "'WS3 OD50 ROUGHING'")):
+        text, done = re.subn(was, now, text, count=1)
+        if not done:
+            raise SystemExit(f"{program} has no {was} to edit")
     last = max(int(m.group(1)) for m in re.finditer(r"^#([0-9]+)=", text, re.MULTILINE))
     text = text.replace("ENDSEC;\nEND-ISO", f"#{last + 1}=CARTESIAN_POINT('EXTRA',(1.,2.,3.));\nENDSEC;\nEND-ISO")
     out.mkdir(parents=True, exist_ok=True)
