@@ -10,10 +10,12 @@ two-setup shaft, ``--real`` another) and a ``generated`` geometry-heavy one; the
 from the ``oxigraph`` PyPI package) and Virtuoso (``virtuoso-t``, Debian ``virtuoso-opensource-7-bin``),
 each on loopback ports, persistent in a temporary directory (``--server`` picks one):
 
-* **load**: ``stepnc-graph load --store DIR`` (embedded) and ``stepnc-graph load --endpoint URL``
-  (staging graphs uploaded over the Graph Store Protocol, then swapped in by one SPARQL Update), each
-  as a user runs it, ``--load-repeat`` times alternating: median wall seconds, the CLI's CPU seconds,
-  and for the endpoint the server's CPU seconds too (read from /proc for its pid).
+* **load**: ``stepnc-graph load --store DIR`` (embedded) and ``stepnc-graph load --endpoint URL``, each
+  as a user runs it, ``--load-repeat`` times alternating: a new program, the same file again (a
+  replacement, ``--replace``), then the file edited (three values changed, one instance added: a
+  replacement by a few lines); median wall seconds, the CLI's CPU seconds, and for the endpoint the
+  server's CPU seconds too (read from /proc for its pid), with ratios to the embedded load of a new
+  program and to the embedded load of the same kind.
 * **queries**: every library query through the Python API (:func:`stepnc_graph.querying.query.execute`,
   results written as SPARQL 1.1 JSON) on the embedded store and on the endpoint: one warm-up, then
   ``--repeat`` runs, medians of wall milliseconds and the endpoint's server CPU milliseconds; the
@@ -27,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import shutil
 import statistics
@@ -96,11 +99,32 @@ def med(runs: list[dict[str, float]], key: str) -> float:
     return statistics.median(r[key] for r in runs)
 
 
+def edited(program: Path, out: Path) -> Path:
+    """``program`` edited as a user edits one: three values changed (two coordinates, a workingstep's
+    name) and one instance added; under the same file name (in ``out``), so it replaces the program."""
+    text = program.read_text()
+    for was, now in ((r"\(0\.0?,0\.0?,-150\.0?\)", "(0.,0.,-151.)"), (r"\(0\.0?,0\.0?,50\.0?\)", "(0.,0.,55.)"),
+                     (r"'WS3 OD50 ROUGH'", "'WS3 OD50 ROUGHING'")):
+        text, done = re.subn(was, now, text, count=1)
+        if not done:
+            raise SystemExit(f"{program} has no {was} to edit")
+    last = max(int(m.group(1)) for m in re.finditer(r"^#([0-9]+)=", text, re.MULTILINE))
+    text = text.replace("ENDSEC;\nEND-ISO", f"#{last + 1}=CARTESIAN_POINT('EXTRA',(1.,2.,3.));\nENDSEC;\nEND-ISO")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / program.name).write_text(text)
+    return out / program.name
+
+
+#: the loads each run measures: (row name, --replace, the edited program)
+LOADS = (("new", False, False), ("replace", True, False), ("replace, edited", True, True))
+
+
 def run(program: Path, label: str, size: int, repeat: int, load_repeat: int, kind: str,
         no_queries: bool = False) -> None:
     from stepnc_graph.store import GraphStore
 
     work = Path(tempfile.mkdtemp(prefix="stepnc-endpoint-"))
+    changed = edited(program, work / "edited")
     try:
         server: Server = VirtuosoServer(work / "server") if kind == "virtuoso" else OxigraphServer(work / "server")
         try:
@@ -108,30 +132,20 @@ def run(program: Path, label: str, size: int, repeat: int, load_repeat: int, kin
         except ServerUnavailable as exc:
             raise SystemExit(str(exc)) from None
         try:
-            embedded: list[dict[str, float]] = []
-            fresh: list[dict[str, float]] = []  # into a store without the program's graph
-            again: list[dict[str, float]] = []  # the same program again: a replacement
+            # the same program into the embedded store and the endpoint: new, again (a replacement
+            # of an identical file), then edited (a replacement of a few changed lines)
+            runs: dict[tuple[str, str], list[dict[str, float]]] = {}
             for i in range(load_repeat):
                 store_dir = work / f"store-{i}"
-                embedded.append(timed_cli(["load", "--store", str(store_dir), str(program)]))
                 if i:
                     timed_cli(["unload", *options(server), program.name])
-                fresh.append(timed_cli(["load", *options(server), str(program)], server))
-                again.append(timed_cli(["load", *options(server), "--replace", str(program)], server))
+                for name, replace, edit in LOADS:
+                    args = ["--replace"] * replace + [str(changed if edit else program)]
+                    runs.setdefault(("embedded", name), []).append(timed_cli(["load", "--store", str(store_dir), *args]))
+                    runs.setdefault(("endpoint", name), []).append(timed_cli(["load", *options(server), *args], server))
                 if i + 1 < load_repeat:
                     shutil.rmtree(store_dir)
-            print(f"{kind}, {label} program: {size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of "
-                  f"{load_repeat} load(s) of each kind, {os.cpu_count()} CPUs, load average "
-                  f"{os.getloadavg()[0]:.1f}, seconds")
-            print(f"{'load':<18} {'wall':>8} {'CLI CPU':>8} {'server CPU':>10} {'inst/s':>8} {'wall ratio':>10} "
-                  f"{'CPU ratio':>10}")
-            base_wall, base_cpu = med(embedded, "wall"), med(embedded, "cpu")
-            for name, runs in (("embedded", embedded), ("endpoint, new", fresh), ("endpoint, replace", again)):
-                wall, cpu, server_cpu = med(runs, "wall"), med(runs, "cpu"), med(runs, "server_cpu")
-                print(f"{name:<18} {wall:8.1f} {cpu:8.1f} {server_cpu:10.1f} {size / wall:8,.0f} "
-                      f"{wall / base_wall:9.2f}x {(cpu + server_cpu) / base_cpu:9.2f}x")
-            print("(ratios to the embedded load of the same run; CPU ratio: the CLI's and the server's CPU "
-                  "seconds over the embedded CLI's)\n", flush=True)
+            print_loads(runs, kind, label, size, program, load_repeat)
             if no_queries:
                 return
             with GraphStore(work / f"store-{load_repeat - 1}", readonly=True) as store:
@@ -142,6 +156,26 @@ def run(program: Path, label: str, size: int, repeat: int, load_repeat: int, kin
         report(local, far, repeat)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def print_loads(runs: dict[tuple[str, str], list[dict[str, float]]], kind: str, label: str, size: int,
+                program: Path, load_repeat: int) -> None:
+    """The loads' medians, each with its ratios to the embedded load of a new program and to the
+    embedded load of the same kind (the replacement of the same edit), same run."""
+    print(f"{kind}, {label} program: {size:,} instances ({program.stat().st_size / 1e6:.1f} MB), medians of "
+          f"{load_repeat} load(s) of each kind, {os.cpu_count()} CPUs, load average "
+          f"{os.getloadavg()[0]:.1f}, seconds")
+    print(f"{'load':<27} {'wall':>6} {'CLI CPU':>7} {'server CPU':>10} {'inst/s':>8} {'wall/new':>8} "
+          f"{'CPU/new':>8} {'wall/same':>9} {'CPU/same':>8}")
+    new = runs["embedded", "new"]
+    for (where, name), got in sorted(runs.items(), key=lambda item: (item[0][0], [n for n, *_ in LOADS].index(item[0][1]))):
+        wall, cpu, server_cpu = med(got, "wall"), med(got, "cpu"), med(got, "server_cpu")
+        same = runs["embedded", name]
+        print(f"{where + ', ' + name:<27} {wall:6.1f} {cpu:7.1f} {server_cpu:10.1f} {size / wall:8,.0f} "
+              f"{wall / med(new, 'wall'):7.2f}x {(cpu + server_cpu) / med(new, 'cpu'):7.2f}x "
+              f"{wall / med(same, 'wall'):8.2f}x {(cpu + server_cpu) / med(same, 'cpu'):7.2f}x")
+    print("(ratios: wall and CPU -- the CLI's and the server's CPU seconds -- over the embedded load of a new\n"
+          " program (/new) and over the embedded load of the same kind, same program (/same), same run)\n", flush=True)
 
 
 def report(local: dict[str, dict[str, float]], far: dict[str, dict[str, float]], repeat: int) -> None:

@@ -23,11 +23,11 @@ from typing import Any, Protocol
 import pytest
 
 import stepnc_graph as sg
-from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH, listed_graphs
+from stepnc_graph.core.naming import VOCABULARY_GRAPH, listed_graphs
 from stepnc_graph.querying.query import library, query
 from stepnc_graph.store.behaviour import wrong_answers
 from stepnc_graph.store import StoreError
-from stepnc_graph.store.remote import RemoteStore, open_remote
+from stepnc_graph.store.remote import _STAGING_NAME, RemoteStore, open_remote
 
 from conftest import FIXTURES, ROOT
 from oxigraph_server import OxigraphServer, ServerUnavailable
@@ -270,7 +270,7 @@ def test_killing_the_server_mid_load_keeps_the_previous_graph(tmp_path: Path, ki
         busy = live.server.cpu()
         while time.monotonic() < deadline and child.poll() is None:  # kill once the upload has begun:
             with live.open() as store:  # a staging graph (or the probe of doubles) is there, or the
-                if any(g.startswith(STAGING) for g in store._all_graphs()):  # server writes (a load
+                if any(_STAGING_NAME.fullmatch(g) for g in store._all_graphs()):  # server writes (a load
                     break  # staged in the client comes in one request)
             if live.server.cpu() - busy > 2.0:
                 break
@@ -347,3 +347,147 @@ def test_digest_is_answered_when_the_server_asks_for_it(monkeypatch: pytest.Monk
             open_remote(f"http://127.0.0.1:{httpd.server_address[1]}")
     finally:
         httpd.shutdown()
+
+
+# -- a replacement (the same file loaded again) writes only what changed, never a mix -------------
+
+def _edited(tmp_path: Path) -> Path:
+    """The example, edited: a coordinate and a name changed, two workingsteps swapped in their
+    workplan's list, one instance (with a list of its own) added; under the example's name, so
+    that loading it replaces the example's graph."""
+    text = EXAMPLE.read_text()
+    for was, now in (("(0.,0.,-150.)", "(0.,0.,-151.)"), ("'WS3 OD50 ROUGH'", "'WS3 OD50 ROUGHING'"),
+                     ("(#30,#31,#32,#33,#34)", "(#30,#31,#32,#34,#33)"),
+                     ("ENDSEC;\nEND-ISO", "#293=CARTESIAN_POINT('EXTRA',(1.,2.,3.));\nENDSEC;\nEND-ISO")):
+        assert text.count(was) == 1
+        text = text.replace(was, now)
+    (tmp_path / "edited").mkdir(exist_ok=True)
+    path = tmp_path / "edited" / EXAMPLE.name
+    path.write_text(text)
+    return path
+
+
+def _canonical(store: Any, graph: str) -> set[str]:
+    """The program's graph and its derived layer, blank nodes named canonically (RDFC-1.0),
+    xsd:double values in one lexical form (a store may write its own: Virtuoso ``120.0``)."""
+    import pyoxigraph as ox
+
+    double = ox.NamedNode("http://www.w3.org/2001/XMLSchema#double")
+    dataset = ox.Dataset()
+    for name in (graph, graph + "/derived"):
+        for q in store.quads(name):
+            o = q.object
+            if isinstance(o, ox.Literal) and o.datatype == double:
+                o = ox.Literal(repr(float(o.value)), datatype=double)
+            dataset.add(ox.Quad(q.subject, q.predicate, o, q.graph_name))
+    dataset.canonicalize(ox.CanonicalizationAlgorithm.RDFC_1_0)
+    return {str(q) for q in dataset}
+
+
+@pytest.fixture
+def replacing(kind: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[Live, Any]]:
+    """A live store and an embedded one, both holding the example, loaded at one fixed time."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    live = start(kind, tmp_path / "server")
+    try:
+        with sg.open_store(str(tmp_path / "embedded")) as embedded, live.open() as store:
+            for s in (store, embedded):
+                sg.load(s, [EXAMPLE], base_iri=DATA + EXAMPLE.name)
+            yield live, embedded
+    finally:
+        live.server.stop()
+
+
+def _sent(store: RemoteStore, monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The bytes of every update body ``store`` sends from now on (streamed bodies counted as sent)."""
+    sizes: list[int] = []
+    request = store._request
+
+    def counting(method: str, url: str, **kwargs: Any) -> Any:
+        if method == "POST" and "data" in kwargs and not isinstance(kwargs["data"], list):
+            data = kwargs["data"]
+            kwargs["data"] = data = data if isinstance(data, bytes) else b"".join(data)
+            sizes.append(len(data))
+        return request(method, url, **kwargs)
+
+    monkeypatch.setattr(store, "_request", counting)
+    return sizes
+
+
+def _before_writing(store: RemoteStore, graph: str, act: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Call ``act`` just before each SPARQL Update ``store`` sends that writes into ``graph`` (the
+    swap of staging graphs, the replacement or the difference), then send it."""
+    request = store._request
+
+    def hooked(method: str, url: str, **kwargs: Any) -> Any:
+        data = kwargs.get("data")
+        text = data.decode("utf-8", "replace") if isinstance(data, bytes) else str(getattr(data, "update", ""))
+        if url == store.endpoint.update_url and f"<{graph}>" in text and any(w in text for w in ("INSERT", "ADD",
+                                                                                                   "DROP")):
+            act()
+        return request(method, url, **kwargs)
+
+    monkeypatch.setattr(store, "_request", hooked)
+
+
+def test_a_replacement_writes_only_what_changed_and_gives_the_embedded_graph(
+        replacing: tuple[Live, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    live, embedded = replacing
+    graph = DATA + EXAMPLE.name
+    with live.open() as store:
+        whole = sum(len(f"{q.triple} .\n") for name in (graph, graph + "/derived") for q in store.quads(name))
+        sent = _sent(store, monkeypatch)
+        for program in (EXAMPLE, _edited(tmp_path), EXAMPLE):  # identical; edited (+1 instance); edited back (-1)
+            sent.clear()
+            for s in (store, embedded):
+                sg.load(s, [program], base_iri=graph, replace=True)
+            assert _canonical(store, graph) == _canonical(embedded, graph)
+            assert store.count(graph) == embedded.count(graph)
+            if live.kind == "oxigraph":  # staged in the client: the difference alone is sent
+                assert store.last_removal == "difference"
+                assert sum(sent) < whole / 10, (sent, whole)
+        exported = cli("export", *live.options, "--format", "p21", "--graph", graph)
+        assert exported.stdout == EXAMPLE.read_text() or exported.stdout == cli(
+            "export", "--store", str(embedded.path), "--format", "p21", "--graph", graph).stdout
+
+
+def test_a_replacement_racing_another_leaves_the_last_writers_graph(
+        replacing: tuple[Live, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Another client replaces the graph between this load's reading and its writing: this load,
+    the last writer, wins whole -- never a mix of the two."""
+    live, embedded = replacing
+    graph = DATA + EXAMPLE.name
+    edited = _edited(tmp_path)
+    with live.open() as store:
+        raced: list[str] = []
+
+        def race() -> None:
+            if not raced:
+                other = cli("load", *live.options, "--base-iri", graph, "--replace", str(edited))
+                raced.append(other.stderr)
+                assert other.returncode == 0, other.stderr
+
+        _before_writing(store, graph, race, monkeypatch)
+        sg.load(store, [EXAMPLE], base_iri=graph, replace=True)
+        assert raced, "the other load never ran"
+        assert _canonical(store, graph) == _canonical(embedded, graph)
+        if live.kind == "oxigraph":
+            assert store.last_removal == "whole: another load wrote in between"
+        sg.load(embedded, [edited], base_iri=graph, replace=True)
+        assert _canonical(store, graph) != _canonical(embedded, graph)
+
+
+def test_killing_the_server_before_a_replacements_update_keeps_the_old_graph(
+        replacing: tuple[Live, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    live, embedded = replacing
+    graph = DATA + EXAMPLE.name
+    before = _canonical(embedded, graph)
+    monkeypatch.setenv("STEPNC_GRAPH_RETRIES", "1")
+    with live.open() as store:
+        _before_writing(store, graph, lambda: live.server.stop(signal.SIGKILL), monkeypatch)
+        with pytest.raises(StoreError, match="does not answer"):
+            sg.load(store, [_edited(tmp_path)], base_iri=graph, replace=True)
+    live.server.start()
+    with live.open() as store:
+        assert _canonical(store, graph) == before
+        assert listed_graphs(store) == [graph]

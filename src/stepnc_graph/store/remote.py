@@ -13,8 +13,9 @@ Jena Fuseki, GraphDB, Virtuoso, Amazon Neptune ...):
 
 **A load is never half visible.** On a server that loads an N-Quads POST in one transaction
 (:data:`_DATASET_POST`) the load is staged in the client, in an in-memory store, and written by
-one request: an N-Quads POST of graphs that do not exist yet, or one SPARQL Update that drops and
-inserts a replacement. Elsewhere its N-Triples go in bounded batches into fresh staging graphs of
+one request: an N-Quads POST of graphs that do not exist yet; for a replacement, one SPARQL Update
+of what changed alone, conditional on the last load's id
+(:mod:`~stepnc_graph.store.remote_difference`), else one that drops and inserts the graphs. Elsewhere its N-Triples go in bounded batches into fresh staging graphs of
 the store, and the file's graph and its companions are replaced by one SPARQL Update request
 (``DROP SILENT GRAPH g ; ADD SILENT GRAPH staging TO g``), which a store runs as one transaction.
 An interrupted load leaves the previous graph as it was, and at most a staging graph that a later
@@ -65,6 +66,7 @@ from stepnc_graph.store.answers import (
     _kind,
     system_graph,
 )
+from stepnc_graph.store.remote_difference import token_graph
 from stepnc_graph.store.remote_http import HttpClient
 from stepnc_graph.store.remote_load import BATCH_BYTES, _batches, replace_from_client, replace_in_store
 from stepnc_graph.store.endpoint import (
@@ -222,7 +224,8 @@ class RemoteStore:
         refuse_strangers(graph, companions)
         if not self.has_graph(graph):
             return False
-        self.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}" for name in (graph, *companions)))
+        self.update(" ; ".join(f"DROP SILENT GRAPH {ox.NamedNode(name)}"
+                               for name in (graph, *companions, token_graph(graph))))
         return True
 
     # -- reading ----------------------------------------------------------------------
@@ -315,6 +318,18 @@ class RemoteStore:
             return int(local.count(graph))
         [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
         return int(row[0].value)
+
+    def ntriples(self, graph: str) -> bytes:
+        """A graph's N-Triples as the store writes them (Graph Store Protocol GET); empty if it has none."""
+        if not self.has_graph(graph):
+            return b""
+        response, content = self._request("GET", self.endpoint.store_url, params={"graph": graph},
+                                          headers={"Accept": _NTRIPLES})
+        media_type = response.headers.get("Content-Type", "").split(";")[0].strip().lower()
+        if media_type != _NTRIPLES:
+            raise RemoteError(f"{self.endpoint.store_url} answered {_kind(media_type)} for graph {graph}, "
+                              f"where N-Triples ({_NTRIPLES}) were expected")
+        return content or b""
 
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
         """A graph's quads (Graph Store Protocol GET); every graph's for None."""

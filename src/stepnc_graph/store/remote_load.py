@@ -19,6 +19,13 @@ from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH
 from stepnc_graph.store.answers import _DOUBLE, _XSD_DOUBLE, RemoteError, _number
 from stepnc_graph.store.contract import Chunk
 from stepnc_graph.store.contract import Companion, Shadow
+from stepnc_graph.store.remote_difference import (
+    OldVersion,
+    new_load_id,
+    replace_by_difference,
+    token_graph,
+    token_line,
+)
 
 if TYPE_CHECKING:
     from stepnc_graph.store.remote import RemoteStore
@@ -145,7 +152,9 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
     them, :func:`_probe_doubles`) and whether the graphs exist. Graphs that do not exist yet
     are written under their own names by one N-Quads POST (one transaction: a failure, a
     client killed mid-request or a server killed mid-load leaves nothing); a replacement by one
-    SPARQL Update that drops the graphs and inserts the new ones (:func:`_commit_from`). One
+    SPARQL Update of what changed since the old version, read meanwhile (:class:`OldVersion`,
+    :func:`replace_by_difference`), or else one that drops the graphs and inserts the new ones
+    (:func:`_commit_from`). Every load records its id in the program's :func:`token_graph`. One
     document holds every graph, so a blank node the derived layer shares with the program stays
     one node (separate documents would split it; the in-memory store names blank nodes anew, so
     the program's text as the loader wrote it cannot go first).
@@ -155,7 +164,7 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
     program staged in the client 3.4; a replacement 24-31 against 11-16."""
     from stepnc_graph.store import GraphStore
 
-    staging, target = _staging_names(store, graph, companions)
+    staging, target = _staging_names(store, graph, [*companions, token_graph(graph)])
     doubles: set[str] = set()
 
     def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
@@ -164,29 +173,33 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
                 doubles.update(_DOUBLE_TEXT.findall(chunk))
             yield chunk
 
+    before = OldVersion(store, [graph, *companions, token_graph(graph)])  # read while the load is staged
     with GraphStore(None) as local:
         store._local = (local, staging)
         try:
             local._bulk_load(staging[graph], counted(chunks), target)
             if before_commit is not None:
                 before_commit(target)
+            local.add_ntriples(staging[token_graph(graph)], token_line(graph, new_load_id()))
         finally:
             store._local = None
         _probe_doubles(store, graph, {d.encode() for d in doubles})
-        _commit_from(store, local, staging)
+        _commit_from(store, local, staging, before)
 
 #: quads of a replacement sent as one SPARQL Update at most: Oxigraph's server takes update bodies
 #: of 128 MiB at most (``SPARQL body payloads are limited to 134217728 bytes``), and a replicated
 #: real program takes ~158 bytes a quad there (a 100k-instance one's replacement: ~220 MB). A larger
-#: replacement goes into staging graphs by one N-Quads POST and is swapped in (:func:`_swap`)
+#: replacement goes into staging graphs by one N-Quads POST and is swapped in (:func:`_swap`); a
+#: replacement by difference of more lines is written so too
 UPDATE_QUADS = 300_000
 
 
-def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> None:
+def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str], before: OldVersion) -> None:
     """Write the staged graphs of ``local`` into the server (see :func:`replace_from_client`).
 
-    Graphs that do not exist yet: one N-Quads POST under their own names. A replacement:
-    :func:`_replace`. The main graph's triple count is read back: a server that answered but did
+    Graphs that do not exist yet: one N-Quads POST under their own names. A replacement: by
+    difference (:func:`replace_by_difference`), else whole (:func:`_replace`); ``last_removal``
+    says which, and why whole. The main graph's triple count is read back: a server that answered but did
     not load is an error, never a load reported done.
 
     A POST adds to what a graph holds, so two clients creating the same graph at the same moment
@@ -199,7 +212,10 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str]) -> N
     main = next(iter(staging))
     want = local.count(staging[main])
     if existing:
-        _replace(store, local, staging)
+        store.last_removal = "difference"
+        if (whole := replace_by_difference(store, local, staging, UPDATE_QUADS, before)) is not None:
+            store.last_removal = f"whole: {whole}"
+            _replace(store, local, staging)
     else:
         try:
             store._post_dataset(_NQuadsBody(local, names))
