@@ -343,10 +343,40 @@ def _warnings(store: Store, graph: str | None, vocabulary: bool = True) -> list[
 
 
 def known_wrong_answers(store: Store, name: str) -> list[str]:
-    """A warning for each behaviour of ``store`` known to change the rows of the library query
-    ``name`` (the table of :mod:`stepnc_graph.store.behaviour`, by the store's ``Server`` header)."""
-    return [f"{store.server} {b.does}: rows may be missing here; the embedded store (--store) answers exactly"
-            for b in wrong_answers(store.server, name)]
+    """What ``store`` is known to do wrong with the rows of the library query ``name`` (the table
+    of :mod:`stepnc_graph.store.behaviour`, by the store's ``Server`` header), one sentence each."""
+    return [f"{store.server} {b.does}" for b in wrong_answers(store.server, name)]
+
+
+def _graphs_read(store: Store, graph: str | None) -> list[str] | None:
+    """The graphs a library query over ``graph`` reads (:func:`dataset`): one program's graph, its
+    derived layer and the vocabulary; None (every graph) for the whole store."""
+    if graph is None:
+        return None
+    if graph not in program_graphs(store):
+        raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
+    return [g for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH) if store.has_graph(g)]
+
+
+def _answered_from_a_copy(store: Store, query: Query, params: Mapping[str, str] | None, graph: str | None,
+                          known: list[str]) -> QueryResult:
+    """``query`` answered by the embedded engine over an in-memory copy of the graphs it reads,
+    for a library query the remote ``store`` is known to answer with rows missing.
+
+    Such a store's rows cannot be corrected afterwards (which rows it drops depends on its data),
+    so its answer is not used at all: the graphs are read with the Graph Store Protocol (what
+    ``export`` and ``validate`` do) and the query runs here, with the rows the embedded store
+    gives. The answer says so: the copy costs a read of those graphs, the whole store's for a
+    whole-store query."""
+    copy = store.local_copy(_graphs_read(store, graph))
+    try:
+        result = execute(copy, query, params, graph)
+    finally:
+        copy.close()
+    scope = "every graph of the store" if graph is None else f"the graphs of {graph}"
+    result.warnings += [f"{what}: answered by stepnc-graph's own engine over a copy of {scope}, read from the "
+                        "store, instead of by the store" for what in known]
+    return result
 
 
 #: a GROUP_CONCAT aggregate and the variable it is bound to
@@ -395,6 +425,9 @@ def execute(store: Store, query: Query, params: Mapping[str, str] | None = None,
 
     A query with a ``SERVICE`` clause is refused (QueryError) unless ``allow_service``."""
     refuse_service(query, allow_service)
+    known = known_wrong_answers(store, query.name) if query.library else []
+    if known and not store.capabilities.local_reads:
+        return _answered_from_a_copy(store, query, params, graph, known)
     if query.needs_vocabulary:
         vocabulary_for_queries(store)
     substitutions = bind(store, query, params or {})
@@ -415,8 +448,6 @@ def execute(store: Store, query: Query, params: Mapping[str, str] | None = None,
     if not query.library:  # the library's terms and lists are tested on each store; a user's are not
         warnings += term_warnings(store, query.text, PREFIXES, options)
         warnings += concat_order_warnings(store, query.text)
-    else:
-        warnings += known_wrong_answers(store, query.name)
     if isinstance(result, ox.QueryBoolean):
         return QueryResult("ask", boolean=bool(result), warnings=warnings,
                            _json=result.serialize(format=ox.QueryResultsFormat.JSON) or b"")
