@@ -608,9 +608,8 @@ def test_a_library_query_a_store_drops_rows_of_is_answered_from_a_copy(
     name = "operations-per-feature"
     defect = Behaviour(re.compile("Oxigraph"), "drops rows of this query (said by the test)", queries=frozenset({name}))
     monkeypatch.setattr(querying, "wrong_answers", lambda srv, q: [defect] if q == name and srv else [])
-    embedded = sg.open_store(None)
-    [here_loaded] = sg.load(embedded, [EXAMPLE])
-    with open_remote(server.url) as store:
+    with sg.open_store(memory=True) as embedded, open_remote(server.url) as store:
+        [here_loaded] = sg.load(embedded, [EXAMPLE])
         [r] = sg.load(store, [EXAMPLE])
         asked: list[str] = []
         query = store.query
@@ -623,7 +622,6 @@ def test_a_library_query_a_store_drops_rows_of_is_answered_from_a_copy(
         assert not [text for text in asked if "operations planned" in text or "?operations" in text]
         assert sg.query(store, "tool-changes").rows == sg.query(embedded, "tool-changes").rows
         assert [text for text in asked if "?changes" in text or "tool" in text.lower()]  # asked the store itself
-    embedded.close()
 
 
 def test_a_difference_reaches_old_blank_nodes_by_their_paths_and_names_new_ones_in_the_template() -> None:

@@ -349,13 +349,11 @@ def known_wrong_answers(store: Store, name: str) -> list[str]:
 
 
 def _graphs_read(store: Store, graph: str | None) -> list[str] | None:
-    """The graphs a library query over ``graph`` reads (:func:`dataset`): one program's graph, its
-    derived layer and the vocabulary; None (every graph) for the whole store."""
+    """The graphs of :func:`dataset` a library query over ``graph`` reads that the store holds (one
+    program's graph, its derived layer and the vocabulary); None (every graph) for the whole store."""
     if graph is None:
         return None
-    if graph not in program_graphs(store):
-        raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
-    return [g for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH) if store.has_graph(g)]
+    return [g.value for g in dataset(store, graph, library=True)["default_graph"] if store.has_graph(g.value)]
 
 
 def _answered_from_a_copy(store: Store, query: Query, params: Mapping[str, str] | None, graph: str | None,
