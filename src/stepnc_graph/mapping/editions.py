@@ -30,7 +30,7 @@ from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from stepnc_graph.core.naming import Naming
 from stepnc_graph.mapping.plans import Encoding, EntityPlan, Plans, Slot, iso14649_plans
@@ -365,14 +365,26 @@ class OtherForm:
 _NAMED_IDS = 10
 
 
-def group_other_forms(rows: list[tuple[int, str, str, int, str, str]]) -> tuple[OtherForm, ...]:
-    """Per entity and edition, in file order: the :class:`OtherForm` of ``rows`` (#id, entity name,
-    edition, line, form, what the file's edition has), one row per instance."""
-    groups: dict[tuple[str, str], list[tuple[int, str, str, int, str, str]]] = {}
+class OtherInstance(NamedTuple):
+    """One instance read in another edition than the file's (the mapper's record of it): its
+    #id, entity name, that edition, its line, that edition's parameters and what the file's
+    edition has under the name."""
+
+    id: int
+    name: str
+    edition: str
+    line: int
+    form: str
+    file_has: str
+
+
+def group_other_forms(rows: list[OtherInstance]) -> tuple[OtherForm, ...]:
+    """Per entity and edition, in file order: the :class:`OtherForm` of ``rows``, one per instance."""
+    groups: dict[tuple[str, str], list[OtherInstance]] = {}
     for row in sorted(rows):
-        groups.setdefault((row[1].upper(), row[2]), []).append(row)
-    return tuple(OtherForm(entity, edition, tuple(r[0] for r in rs), tuple(r[3] for r in rs), rs[0][4], rs[0][5])
-                 for (entity, edition), rs in groups.items())
+        groups.setdefault((row.name.upper(), row.edition), []).append(row)
+    return tuple(OtherForm(entity, edition, tuple(r.id for r in rs), tuple(r.line for r in rs), rs[0].form,
+                           rs[0].file_has) for (entity, edition), rs in groups.items())
 
 
 def other_form_sentences(forms: tuple[OtherForm, ...]) -> list[str]:

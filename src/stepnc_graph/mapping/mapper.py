@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from stepnc_graph.mapping import ntriples as T
-from stepnc_graph.mapping.editions import unread_form
+from stepnc_graph.mapping.editions import OtherInstance, unread_form
 from stepnc_graph.mapping.plans import (
     P21_DERIVED,
     P21_EDITION,
@@ -164,9 +164,8 @@ class InstanceMapper:
         self.plans = plans
         #: where an instance that does not fit ``plans`` may fit another edition (see :meth:`map`)
         self.fallback = fallback
-        #: each instance read by :attr:`fallback`: (#id, entity name, edition, line, that edition's
-        #: parameters, what the file's edition has under the name), for the load's report
-        self.other_forms: list[tuple[int, str, str, int, str, str]] = []
+        #: each instance read by :attr:`fallback`, for the load's report
+        self.other_forms: list[OtherInstance] = []
         self.positions = positions
         self.derived = derived
         #: derived-layer lines of the instances mapped so far (the loader takes them away)
@@ -437,8 +436,8 @@ class InstanceMapper:
             self.derived = merge_tables(self.derived, tables)
         self._simple(s, plan, inst.params, lines, derived, labels)
         lines.append(f"{s} {P21_EDITION} {T.string(edition)} .\n")
-        self.other_forms.append((inst.id, inst.name or "", edition, inst.line,
-                                 f"{len(plan.slots)} ({', '.join(sl.name for sl in plan.slots)})", own))
+        self.other_forms.append(OtherInstance(inst.id, inst.name or "", edition, inst.line,
+                                              f"{len(plan.slots)} ({', '.join(sl.name for sl in plan.slots)})", own))
         return plan
 
     def _source(self, inst: Instance, s: str, out: list[str]) -> None:

@@ -319,17 +319,23 @@ class RemoteStore:
         [row] = list(self.query(f"SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH {ox.NamedNode(graph)} {{ ?s ?p ?o }} }}"))
         return int(row[0].value)
 
+    def _get_graph(self, graph: str, stream: bool) -> tuple[Any, bytes | None]:
+        """The Graph Store Protocol GET of ``graph`` as N-Triples: the response (and its content,
+        unless ``stream``), checked to be N-Triples (RemoteError otherwise, the response closed)."""
+        response, content = self._request("GET", self.endpoint.store_url, params={"graph": graph},
+                                          headers={"Accept": _NTRIPLES}, stream=stream)
+        media_type = response.headers.get("Content-Type", "").split(";")[0].strip().lower()
+        if media_type != _NTRIPLES:
+            response.close()
+            raise RemoteError(f"{self.endpoint.store_url} answered {_kind(media_type)} for graph {graph}, "
+                              f"where N-Triples ({_NTRIPLES}) were expected")
+        return response, content
+
     def ntriples(self, graph: str) -> bytes:
         """A graph's N-Triples as the store writes them (Graph Store Protocol GET); empty if it has none."""
         if not self.has_graph(graph):
             return b""
-        response, content = self._request("GET", self.endpoint.store_url, params={"graph": graph},
-                                          headers={"Accept": _NTRIPLES})
-        media_type = response.headers.get("Content-Type", "").split(";")[0].strip().lower()
-        if media_type != _NTRIPLES:
-            raise RemoteError(f"{self.endpoint.store_url} answered {_kind(media_type)} for graph {graph}, "
-                              f"where N-Triples ({_NTRIPLES}) were expected")
-        return content or b""
+        return self._get_graph(graph, stream=False)[1] or b""
 
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
         """A graph's quads (Graph Store Protocol GET); every graph's for None."""
@@ -338,13 +344,7 @@ class RemoteStore:
             return
         for name in [graph] if graph else self.all_graphs():
             assert name is not None
-            response, _ = self._request("GET", self.endpoint.store_url, params={"graph": name},
-                                        headers={"Accept": _NTRIPLES}, stream=True)
-            media_type = response.headers.get("Content-Type", "").split(";")[0].strip().lower()
-            if media_type != _NTRIPLES:
-                response.close()
-                raise RemoteError(f"{self.endpoint.store_url} answered {_kind(media_type)} for graph {name}, "
-                                  f"where N-Triples ({_NTRIPLES}) were expected")
+            response, _ = self._get_graph(name, stream=True)
             response.raw.decode_content = True  # streamed: a large graph is never all in memory
             g = ox.NamedNode(name)
             with response:

@@ -153,16 +153,23 @@ def replace_by_difference(store: RemoteStore, local: Any, staging: dict[str, str
     return None
 
 
+def _blanks(line: bytes) -> list[tuple[int, int, bytes]]:
+    """The blank nodes of an N-Triples line as Oxigraph writes it, subject first: each one's
+    span (from its ``_:``) and its label."""
+    if b"_:" not in line:
+        return []
+    found = []
+    if line.startswith(b"_:"):
+        end = line.index(b" ")
+        found.append((0, end, line[2:end]))
+    if (m := BLANK_OBJECT.search(line)) is not None:
+        found.append((m.start(1) - 2, m.end(1), m.group(1)))
+    return found
+
+
 def _labels(lines: Iterable[bytes]) -> set[bytes]:
     """The blank node labels of N-Triples lines (subjects and objects)."""
-    found: set[bytes] = set()
-    for line in lines:
-        if b"_:" in line:
-            if line.startswith(b"_:"):
-                found.add(line[2:line.index(b" ")])
-            if (m := BLANK_OBJECT.search(line)) is not None:
-                found.add(m.group(1))
-    return found
+    return {label for line in lines for _, _, label in _blanks(line)}
 
 
 def _lines(text: bytes) -> set[bytes]:
@@ -241,16 +248,7 @@ class Paths:
     def template(self, line: bytes) -> str | None:
         """``line`` for the update's templates: an old blank node as its bound variable, a new one
         as a label of the template; None if an old one has no path."""
-        text = line.decode("utf-8")
-        if b"_:" not in line:
-            return text
-        terms: list[tuple[int, int, bytes]] = []
-        if line.startswith(b"_:"):
-            end = line.index(b" ")
-            terms.append((0, end, line[2:end]))
-        if (m := BLANK_OBJECT.search(line)) is not None:
-            terms.append((m.start(1) - 2, m.end(1), m.group(1)))
-        for start, end, label in reversed(terms):
+        for start, end, label in reversed(_blanks(line)):
             term = self.bind(label) if label in self.old else "_:n" + label.decode("ascii")
             if term is None:
                 return None

@@ -20,7 +20,6 @@ from stepnc_graph.core.naming import (
     VOCABULARY_GRAPH,
     derived_graph_iri,
     instance_id,
-    instance_prefix,
     program_graphs,
 )
 from stepnc_graph.querying.query import PREFIXES
@@ -180,12 +179,11 @@ def _things(store: Store, graph: str, named: str, roots: tuple[str, ...], info: 
     expected = set(_class_list(store, graph, roots))
     values = " ".join(f"(<{cls}> {k})" for k, cls in enumerate(classes) if cls in expected) or "(<urn:none> 0)"
     names = [cls.rsplit("#", 1)[-1] for cls in classes]
-    head = instance_prefix(graph) + "i"
     odd: list[str] = []
     for x, label, k in _rows(store, graph, _THINGS.replace("NAMED", named).replace("CLASSES", values)):
-        digits = x[len(head):] if k and x.startswith(head) else ""
-        if digits.isdigit() and digits.isascii():
-            info[x] = Thing(x, label, f"#{int(digits)}", names[int(k)])
+        n = instance_id(graph, x) if k else None
+        if n is not None:
+            info[x] = Thing(x, label, f"#{n}", names[int(k)])
         else:  # of another class, not in the program, or not an IRI the loader mints
             odd.append(x)
     if odd:
