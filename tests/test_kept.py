@@ -15,11 +15,11 @@ from hypothesis import strategies as st
 import stepnc_graph as sg
 from stepnc_graph.store import kept as kept_module
 from stepnc_graph.store.kept import KeptTexts, read_without_blank_nodes
+from stepnc_graph.store.kept_graph import graph_from_kept
 from stepnc_graph.core.naming import derived_graph_iri
 from stepnc_graph.store import GraphStore
 from stepnc_graph.store.difference import has_blank
 from stepnc_graph.store.removal import Removal
-from stepnc_graph.store.replacement import Replacement
 
 from test_store import EXAMPLE, G, assert_as_a_fresh_load, copies
 
@@ -87,7 +87,7 @@ def test_the_old_version_read_from_the_kept_text_is_the_dump_of_the_store(tmp_pa
         kept = s._kept.valid(s.generation)
         for graph in (G, D):
             path = tmp_path / "old.nt"
-            assert Replacement(s)._old_from_kept(graph, kept[graph], path)
+            assert graph_from_kept(s._disk, graph, s._kept.path(kept[graph]), kept[graph].lines, path, store_labels=True)
             dumped = s.dump(ox.RdfFormat.N_TRIPLES, graph)
             assert as_stored(path.read_bytes()) == sorted(dumped.splitlines())
 

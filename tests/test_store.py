@@ -21,7 +21,7 @@ import pytest
 
 import stepnc_graph as sg
 from stepnc_graph import store as store_module
-from stepnc_graph.store import batches, difference, replacement, tuning
+from stepnc_graph.store import batches, difference, kept_graph, tuning
 from stepnc_graph.store.removal import Removal
 from stepnc_graph.store.replacement import Replacement
 from stepnc_graph.store.handoff import Handoff
@@ -637,7 +637,7 @@ def test_a_replacement_that_fails_while_writing_the_difference_changes_nothing(t
                 raise OSError("disk full (injected)")
 
             # the kept text fails (the old version is then dumped), and so does the dump
-            monkeypatch.setattr(replacement, "read_without_blank_nodes", fail_kept)
+            monkeypatch.setattr(kept_graph, "read_without_blank_nodes", fail_kept)
             monkeypatch.setattr(Replacement, "_dump_graph", staticmethod(fail_old))
         elif when == "while deleting what changed":
             monkeypatch.setattr(Replacement, "_delete_lines", fail_after(Replacement._delete_lines))

@@ -114,7 +114,7 @@ class Part21Writer:
 
     # -- reading the graph ----------------------------------------------------------
 
-    def write(self, quads: Iterable[ox.Quad], graph: str | None = None) -> str:
+    def write(self, quads: Iterable[ox.Quad] | Iterable[ox.Triple], graph: str | None = None) -> str:
         props: dict[str, dict[str, list[Any]]] = defaultdict(lambda: defaultdict(list))
         for q in quads:
             props[_key(q.subject)][f"<{q.predicate.value}>"].append(q.object)
@@ -376,6 +376,6 @@ def _check_frame(graph: str | None, header: str, extra: str, openers: list[str])
         raise WriteError(f"{where}: its kept header or section text holds {found} instance(s) of its own")
 
 
-def write_graph(plans: Plans, quads: Iterable[ox.Quad], graph: str | None = None) -> str:
+def write_graph(plans: Plans, quads: Iterable[ox.Quad] | Iterable[ox.Triple], graph: str | None = None) -> str:
     return Part21Writer(plans).write(quads, graph)
 

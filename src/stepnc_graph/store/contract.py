@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Protocol, TypeGuard
 
 import pyoxigraph as ox
@@ -154,6 +155,13 @@ class Store(Protocol):
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]: ...
 
     def quads_for_pattern(self, subject: Any, predicate: Any, obj: Any, graph: Any = None) -> Iterator[ox.Quad]: ...
+
+    def kept_text(self, graph: str, path: Path, store_labels: bool = True) -> bool:
+        """Write ``graph`` to ``path`` as N-Triples from what the store kept of its last load, where
+        that is cheaper than reading the graph and still describes it (``store_labels=False``: blank
+        nodes labelled as the load wrote them, for a text of that graph alone); False, and nothing
+        to use, elsewhere."""
+        ...
 
     def local_copy(self, graphs: str | Sequence[str] | None = None) -> Any:
         """An in-memory store holding ``graphs`` (one, several, every one), for work that reads

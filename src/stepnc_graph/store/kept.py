@@ -10,7 +10,7 @@ nodes, which Oxigraph's bulk loader renames. So a load also writes its text here
 thread of its own as it goes by (zlib level 1: a 1M-instance program's 1.9 GB of N-Triples take
 128 MB and about 3.6 s of CPU, where level 1 of zstd would take 60 MB and 0.9 s but a dependency),
 and a replacement reads the old version's lines without blank node from it and only the lines
-with one (12 % of a real program's) from the store (:meth:`~stepnc_graph.store.replacement.Replacement._old_from_kept`).
+with one (12 % of a real program's) from the store (:func:`~stepnc_graph.store.kept_graph.graph_from_kept`).
 
 **Never a wrong text.** ``index.json`` names the published generation it describes and, for each
 graph, the file of its text and that text's line count. It is written after that generation is
@@ -202,7 +202,7 @@ def read_without_blank_nodes(path: Path, out: BinaryIO) -> OldLines:
     its 1.2 GB; a regular expression over the lines took 15 s)."""
     found = OldLines()
     predicates: set[bytes] = set()
-    for block in _blocks(path):
+    for block in blocks(path):
         found.lines += block.count(b"\n")
         find, run = block.find, 0
         pos = 0
@@ -221,7 +221,7 @@ def read_without_blank_nodes(path: Path, out: BinaryIO) -> OldLines:
     return found
 
 
-def _blocks(path: Path) -> Iterator[bytes]:
+def blocks(path: Path) -> Iterator[bytes]:
     """The decompressed text of ``path`` in blocks of whole lines of about :data:`BLOCK` bytes."""
     decompressor = zlib.decompressobj()
     rest = b""

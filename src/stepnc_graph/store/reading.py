@@ -5,13 +5,19 @@ which refuses use of a closed store, or of one whose rollback could not reopen i
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import pyoxigraph as ox
 
 from stepnc_graph.core.naming import STAGING
 from stepnc_graph.store.batches import count_in
 from stepnc_graph.store.errors import StoreError
+from stepnc_graph.store.kept_graph import graph_from_kept
+
+if TYPE_CHECKING:
+    from stepnc_graph.store.kept import KeptTexts
+    from stepnc_graph.store.transaction import Transaction
 
 
 class OxigraphReads:
@@ -19,6 +25,8 @@ class OxigraphReads:
 
     _store: ox.Store | None
     _closed_because: str | None
+    _tx: Transaction
+    _kept: KeptTexts
 
     @property
     def _db(self) -> ox.Store:
@@ -53,6 +61,15 @@ class OxigraphReads:
         """Oxigraph's ``quads_for_pattern``, for readers (unlike :attr:`oxigraph`, it keeps the
         kept texts of a writer valid)."""
         return iter(self._db.quads_for_pattern(subject, predicate, obj, graph))
+
+    def kept_text(self, graph: str, path: Path, store_labels: bool = True) -> bool:
+        """Write ``graph`` to ``path`` as N-Triples from the text its last load kept, when the store
+        kept one that describes the graph as it is read now (:func:`~stepnc_graph.store.kept_graph.graph_from_kept`:
+        a fraction of a dump's cost); False, and nothing to use, when it did not (in memory, after
+        a write outside a load, a damaged file)."""
+        kept = self._tx.readable_kept().get(graph)
+        return kept is not None and graph_from_kept(self._db, graph, self._kept.path(kept), kept.lines, path,
+                                                    store_labels)
 
     def dump(self, fmt: ox.RdfFormat, graph: str | None = None, prefixes: dict[str, str] | None = None) -> bytes:
         kwargs: dict[str, Any] = {}

@@ -337,6 +337,10 @@ class RemoteStore:
             return b""
         return self._get_graph(graph, stream=False)[1] or b""
 
+    def kept_text(self, graph: str, path: Path, store_labels: bool = True) -> bool:
+        """False: an endpoint keeps no load's text here (its graphs are read over the protocol)."""
+        return False
+
     def quads(self, graph: str | None = None) -> Iterator[ox.Quad]:
         """A graph's quads (Graph Store Protocol GET); every graph's for None."""
         if graph is not None and (local := self._staged(graph)) is not None:

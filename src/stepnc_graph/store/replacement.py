@@ -14,7 +14,6 @@ import itertools
 import shutil
 import threading
 import traceback
-import zlib
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -30,7 +29,6 @@ from stepnc_graph.store.difference import (
     BlankMatch,
     Deleter,
     Tee,
-    append_file,
     compared_parts,
     file_lines,
     give_back_freed_memory,
@@ -39,7 +37,8 @@ from stepnc_graph.store.difference import (
 )
 from stepnc_graph.store.errors import StoreError
 from stepnc_graph.store.removal import Removal
-from stepnc_graph.store.kept import KeptText, read_without_blank_nodes
+from stepnc_graph.store.kept import KeptText
+from stepnc_graph.store.kept_graph import graph_from_kept
 
 if TYPE_CHECKING:
     from stepnc_graph.store.embedded import GraphStore
@@ -66,7 +65,7 @@ class Replacement:
         (in memory, or on disk in the scratch directory when ``in_memory`` is false, see
         :data:`~stepnc_graph.store.tuning.STAGE_IN_MEMORY_QUADS`), then each graph is compared with the one on disk as
         N-Triples lines (the old version from the text its load kept, ``kept``, see
-        :meth:`_old_from_kept`; else dumped), and only the lines that changed are deleted and
+        :func:`~stepnc_graph.store.kept_graph.graph_from_kept`; else dumped), and only the lines that changed are deleted and
         inserted. Blank nodes
         (list cells, typed values), which no two loads name alike, are first matched between the
         versions by their place under the instance that owns them (:class:`BlankMatch`), so an
@@ -115,7 +114,7 @@ class Replacement:
                kept: dict[str, KeptText]) -> tuple[dict[str, Path | None], dict[str, Path | None], bool]:
         """Load the new version of ``graph`` into a store of its own (in memory, or in
         ``scratch/staged``) and complete it there, while the old version of the graphs ``names``
-        is written out (from the text its load kept, :meth:`_old_from_kept`, or dumped). Returns the N-Triples files of the new and of the old version, graph by
+        is written out (from the text its load kept, :func:`~stepnc_graph.store.kept_graph.graph_from_kept`, or dumped). Returns the N-Triples files of the new and of the old version, graph by
         graph (None: no such graph; the vocabulary graph is among them when the load rewrote it),
         and whether the new version was dumped (see below). The staged store is dropped on return.
 
@@ -139,7 +138,8 @@ class Replacement:
             try:
                 if not self.store._disk.contains_named_graph(ox.NamedNode(name)):
                     return None
-                if name in kept and self._old_from_kept(name, kept[name], path):
+                if name in kept and graph_from_kept(self.store._disk, name, self.store._kept.path(kept[name]), kept[name].lines,
+                                                     path, store_labels=True):
                     from_kept.append(name)
                     return path
                 return self._dump_graph(self.store._disk, name, path)
@@ -197,38 +197,6 @@ class Replacement:
                              range(len(to_dump)))
             new.update(zip(to_dump, paths, strict=True))
         return new, old, teed is None
-
-    def _old_from_kept(self, name: str, kept: KeptText, path: Path) -> bool:
-        """Write graph ``name`` of the database to ``path`` as N-Triples from the text its load
-        kept (see :mod:`stepnc_graph.store.kept`): the lines without blank node as kept, the others
-        read from the database, predicate by predicate (their blank nodes are named there as the
-        bulk loader named them: 6 s for a 1M-instance program's 1.66M such lines, where the dumps
-        of its two graphs take about 120 s of CPU). False, and nothing to use, when the file is
-        damaged or the line counts differ from the database's."""
-        db, node = self.store._disk, ox.NamedNode(name)
-        blank = path.with_name(path.stem + "-blank.nt")
-        try:
-            with open(path, "wb", buffering=1 << 20) as out:
-                found = read_without_blank_nodes(self.store._kept.path(kept), out)
-                if found.lines + found.blank != kept.lines:
-                    return False
-                read = 0
-                for predicate in sorted(found.predicates):
-                    p = predicate.decode("utf-8")
-                    triples = db.query(f"CONSTRUCT {{ ?s {p} ?o }} WHERE {{ GRAPH {node} {{ ?s {p} ?o "
-                                       f"FILTER(isBlank(?s) || isBlank(?o)) }} }}")
-                    assert isinstance(triples, ox.QueryTriples)
-                    # Into a file by Oxigraph itself: as bytes the text of one predicate was
-                    # held twice (150 MB at 1M instances); into a Python writer, every write
-                    # waits for the interpreter (94 s instead of 2 beside a busy thread).
-                    triples.serialize(str(blank), ox.RdfFormat.N_TRIPLES)
-                    del triples  # a query's result holds the database open
-                    read += append_file(blank, out)
-        except (OSError, EOFError, zlib.error, UnicodeDecodeError, SyntaxError):
-            return False
-        finally:
-            blank.unlink(missing_ok=True)
-        return read == found.blank and found.lines + read == count_in(db, name)
 
     @staticmethod
     def _relabelled(new: dict[str, Path | None], match: BlankMatch, path: Path) -> Path:

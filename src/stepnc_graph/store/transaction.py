@@ -160,6 +160,14 @@ class Transaction:
             return {}
         return {g: k for g, k in self.store._kept.valid(self.since).items() if g not in self.touched}
 
+    def readable_kept(self) -> dict[str, KeptText]:
+        """The kept texts that describe the database a reader reads now: those of the generation
+        the store read or last published, while no write runs (its work is not published) and no
+        writer handed out the database (``touched`` None: it may have been written through)."""
+        if self.store.path is None or self.since is not None or self.touched is None:
+            return {}
+        return self.store._kept.valid(self.store.generation)
+
     def touch(self, graphs: Sequence[str] | None) -> None:
         """Note that the current write changes ``graphs`` (None: perhaps any), whose kept texts
         then describe them no more (see :mod:`stepnc_graph.store.kept`)."""
