@@ -75,11 +75,8 @@ def _part21(store: Store, graph: str) -> bytes:
     describes it (:meth:`~stepnc_graph.store.contract.Store.kept_text`), else from the store.
 
     The kept text costs a fifth of Oxigraph's reading of the quads (a generated 100k-instance
-    program: 2.6 CPU-s against 12-14). It is the loader's text, whose literals may differ in form
-    from the store's (Oxigraph writes ``+00:00`` of a time as ``Z``), so the RDF exports, which give
-    the store's forms, do not read it; the Part 21 writer reads every literal it writes by value
-    (a real as a number, an integer as the loader wrote it, from a Python int), and what it writes
-    is the same (tests/test_export.py compares both ways on every fixture)."""
+    program: 2.6 CPU-s against 12-14); tests/test_export_kept.py compares both ways on every
+    fixture, random and damaged programs."""
     with tempfile.TemporaryDirectory(prefix="stepnc-graph-export-") as scratch:
         path = Path(scratch) / "graph.nt"
         if store.kept_text(graph, path, store_labels=False):  # the writer needs no label of the store's
@@ -125,14 +122,14 @@ def canonical_lines(store: Store, graph: str | None = None, graphs: list[str] | 
     """
     labels = _Labels()
     if graph is not None:
-        yield from _graph_lines(store, graph, labels, "", quads)
+        yield from _graph_lines(store, graph, labels, "", quads, alone=True)
         return
     if graphs is None:
         default: list[str] = []
         _dump(store, ox.DefaultGraph(), lambda line: default.append(line + "\n"))
         yield from sorted(default)
     for k, name in enumerate(graphs if graphs is not None else store.all_graphs(), start=1):
-        yield from _graph_lines(store, name, labels, f"g{k}", quads)
+        yield from _graph_lines(store, name, labels, f"g{k}", quads, alone=False)
 
 
 class _Lines:
@@ -162,17 +159,29 @@ class _Lines:
 
 
 def _dump(store: Store, graph: ox.NamedNode | ox.DefaultGraph, take: Callable[[str], None]) -> None:
-    """Each line of ``graph`` as Oxigraph writes it in N-Triples, to ``take``."""
-    store.oxigraph.dump(cast(IO[bytes], _Lines(take)), ox.RdfFormat.N_TRIPLES, from_graph=graph)
+    """Each line of ``graph`` as Oxigraph writes it in N-Triples, to ``take``. By a CONSTRUCT, which
+    costs what Oxigraph's dump costs (a generated 100k-instance program: 11.6-11.9 CPU-s against
+    12.1-13.8, the same text), where the dump would need ``store.oxigraph``, which a writer hands out
+    only as a database that may then be written through (it then keeps no load's text,
+    see :meth:`~stepnc_graph.store.contract.Store.kept_text`)."""
+    where = "?s ?p ?o" if isinstance(graph, ox.DefaultGraph) else f"GRAPH {graph} {{ ?s ?p ?o }}"
+    triples = store.query(f"CONSTRUCT {{ ?s ?p ?o }} WHERE {{ {where} }}")
+    triples.serialize(cast(IO[bytes], _Lines(take)), ox.RdfFormat.N_TRIPLES)
 
 
 #: a graph's triples as text: subject -> [(predicate, object)], each term as N-Triples writes it
 _Triples = dict[str, list[tuple[str, str]]]
 
 
-def _read_graph(store: Store, graph: str) -> tuple[_Triples, list[tuple[int, str]]]:
+def _read_graph(store: Store, graph: str, alone: bool = True) -> tuple[_Triples, list[tuple[int, str]]]:
     """The graph's triples by subject, and its ``p21:id``s as (number, subject); each predicate's
-    text is held once (a large graph's index is most of an export's memory)."""
+    text is held once (a large graph's index is most of an export's memory).
+
+    Read from the text the graph's load kept where the store has one that still describes it
+    (:meth:`~stepnc_graph.store.contract.Store.kept_text`: the loader writes every term as
+    Oxigraph writes it back, tests/test_export_kept.py holds it to that), else dumped. Beside
+    other graphs (not ``alone``) its blank nodes keep the store's labels, so that a node two
+    graphs share (a derived layer's index on a list cell) stays one node."""
     triples: _Triples = {}
     numbered: list[tuple[int, str]] = []
     predicates: dict[str, str] = {}
@@ -186,7 +195,15 @@ def _read_graph(store: Store, graph: str) -> tuple[_Triples, list[tuple[int, str
         if predicate == id_predicate:
             numbered.append((int(obj[1:obj.index('"', 1)]), subject))
 
-    _dump(store, ox.NamedNode(graph), take)
+    with tempfile.TemporaryDirectory(prefix="stepnc-graph-export-") as scratch:
+        path = Path(scratch) / "graph.nt"
+        if store.kept_text(graph, path, store_labels=not alone):
+            lines = _Lines(take)
+            with open(path, "rb") as fh:
+                while data := fh.read(1 << 20):
+                    lines.write(data)
+        else:
+            _dump(store, ox.NamedNode(graph), take)
     numbered.sort()
     return triples, numbered
 
@@ -207,11 +224,11 @@ class _Labels:
         return self.of[term]
 
 
-def _graph_lines(store: Store, graph: str, labels: _Labels, scope: str, quads: bool) -> Iterator[str]:
+def _graph_lines(store: Store, graph: str, labels: _Labels, scope: str, quads: bool, alone: bool) -> Iterator[str]:
     """The graph's lines in the canonical order: its own node, its instances by ``#id``, its
     other named subjects by IRI, each with the blank nodes it reaches; then the blank subjects
-    none reaches."""
-    triples, numbered = _read_graph(store, graph)
+    none reaches. ``alone``: the export holds this graph only (see :func:`_read_graph`)."""
+    triples, numbered = _read_graph(store, graph, alone)
     g = f"<{graph}>"
     end = f" {g} .\n" if quads else " .\n"
     roots: list[tuple[str, str]] = [("g", g)] + [(f"i{number}", node) for number, node in numbered]

@@ -112,3 +112,11 @@ def load_time() -> datetime:
     if epoch.isdigit():
         return datetime.fromtimestamp(int(epoch), timezone.utc)
     return datetime.now(timezone.utc)
+
+
+
+def load_timestamp() -> str:
+    """:func:`load_time` as an xsd:dateTime literal in N-Triples, written as Oxigraph writes the
+    value back (UTC as ``Z``, not ``+00:00``): the text a load keeps is then the store's text
+    (see stepnc_graph.store.kept_graph), and an export may read it instead of the store."""
+    return f'"{load_time().strftime("%Y-%m-%dT%H:%M:%SZ")}"^^<http://www.w3.org/2001/XMLSchema#dateTime>'

@@ -55,7 +55,7 @@ from typing import Any
 import pyoxigraph as ox
 
 from stepnc_graph.core.version import __version__
-from stepnc_graph.loading.common import DCT, PROV, RDFS, LoadResult, Progress, load_time
+from stepnc_graph.loading.common import DCT, PROV, RDFS, LoadResult, Progress, load_timestamp
 from stepnc_graph.mapping.editions import EDITIONS, edition_plans
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
 from stepnc_graph.core.naming import P21_NS, TOOL_IRI, alias_iri, instance_prefix
@@ -273,7 +273,7 @@ class JsonLdLoad:
     def metadata(self, types: dict[Any, list[str]], derived_from: list[Any]) -> list[str]:
         """This load's metadata and provenance (as a Part 21 load writes them)."""
         s, path = f"<{self.graph}>", self.source.path
-        now = f'"{load_time().isoformat(timespec="seconds")}"^^<{XSD}dateTime>'
+        now = load_timestamp()
         activity, tool = f"<{instance_prefix(self.graph)}load>", f"<{TOOL_IRI}{__version__}>"
         raw_count = sum(not _RAW.isdisjoint(classes) for classes in types.values())
         where = str(path.resolve()) if path is not None else self.source.name

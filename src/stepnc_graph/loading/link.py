@@ -40,7 +40,7 @@ import pyoxigraph as ox
 
 from stepnc_graph.core.errors import listed_by, option
 from stepnc_graph.core.version import __version__
-from stepnc_graph.loading.common import DCT, PROV, RDFS, load_time
+from stepnc_graph.loading.common import DCT, PROV, RDFS, load_timestamp
 from stepnc_graph.mapping.plans import Plans, iso14649_plans
 from stepnc_graph.core.naming import (
     P21_NS,
@@ -219,7 +219,7 @@ def _refuse_other_mapping(store: Store, target: str, path: Path, replace: bool) 
 def _provenance(target: str, graph: str, path: Path, raw: bytes) -> list[str]:
     """The link graph describes itself: what it links, from which file, when, by what."""
     g, uri = f"<{target}>", f"<{path.resolve().as_uri()}>"
-    now = f'"{load_time().isoformat(timespec="seconds")}"^^<http://www.w3.org/2001/XMLSchema#dateTime>'
+    now = load_timestamp()
     activity, tool = f"<{instance_prefix(target)}link>", f"<{TOOL_IRI}{__version__}>"
     return [f"{g} <{RDF_TYPE}> <{P21_NS}LinkGraph> .\n", f"{g} <{RDF_TYPE}> <{PROV}Entity> .\n",
             f"{g} <{P21_NS}linkedProgram> <{graph}> .\n",

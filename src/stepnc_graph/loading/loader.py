@@ -47,7 +47,7 @@ from stepnc_graph.part21.reader import Header, Part21Reader, defined_ids
 from stepnc_graph.part21.source import decode_source, read_source, read_stdin
 from stepnc_graph.core.formats import reads_as
 from stepnc_graph.loading.sources import plan_sources, refuse_replacing_other_files
-from stepnc_graph.loading.common import DCT, OWL_SAME_AS, PROV, RDFS, LoadResult, Progress, Source, load_time
+from stepnc_graph.loading.common import DCT, OWL_SAME_AS, PROV, RDFS, LoadResult, Progress, Source, load_timestamp
 from stepnc_graph.core.naming import graph_layout
 from stepnc_graph.store.contract import Chunk, Companion, Shadow, Store
 from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary
@@ -252,7 +252,7 @@ class _Load:
     def metadata(self) -> list[str]:
         g = self.graph
         s = f"<{g}>"
-        now = load_time().isoformat(timespec="seconds")
+        now = load_timestamp()
         activity = f"<{instance_prefix(g)}load>"
         tool = f"<{TOOL_IRI}{__version__}>"
         used = [f"{activity} <{PROV}used> <{self.path.resolve().as_uri()}> .\n"] if self.path else []
@@ -265,12 +265,12 @@ class _Load:
             f"{s} <{P21_NS}sha256> {T.string(hashlib.sha256(self.raw).hexdigest())} .\n",
             f"{s} <{P21_NS}instanceCount> {T.integer(self.result.instances)} .\n",
             f"{s} <{P21_NS}rawInstanceCount> {T.integer(self.mapper.raw_count)} .\n",
-            f"{s} <{PROV}generatedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
+            f"{s} <{PROV}generatedAtTime> {now} .\n",
             f"{s} <{PROV}wasGeneratedBy> {activity} .\n",
             f"{activity} {T.RDF_TYPE} <{PROV}Activity> .\n",
             *used,
             f"{activity} <{PROV}wasAssociatedWith> {tool} .\n",
-            f"{activity} <{PROV}endedAtTime> {T.typed(now, T.XSD + 'dateTime')} .\n",
+            f"{activity} <{PROV}endedAtTime> {now} .\n",
             f"{tool} {T.RDF_TYPE} <{PROV}SoftwareAgent> .\n",
             f"{tool} <{RDFS}label> {T.string('stepnc-graph ' + __version__)} .\n",
         ]

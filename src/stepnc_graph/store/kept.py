@@ -39,6 +39,11 @@ from typing import BinaryIO
 from stepnc_graph.store.handoff import Handoff
 
 INDEX = "index.json"
+#: the form of the texts kept: 2 since the loader writes every literal as Oxigraph writes it back
+#: (the load time in UTC with ``Z``), so that a text is the store's text and an export may read it
+#: (:mod:`stepnc_graph.store.kept_graph`). An entry of another form (1: none named, before) is not
+#: read: the graph is dumped, as it was before it kept a text, until its next load
+FORM = 2
 #: zlib's level (see the module docstring)
 LEVEL = 1
 #: bytes of decompressed text handled at a time when the kept text is read back
@@ -88,6 +93,8 @@ class KeptTexts:
                 kept = KeptText(str(entry["file"]), int(entry["lines"]), int(entry["size"]))
             except (KeyError, TypeError, ValueError):
                 continue
+            if entry.get("form") != FORM:
+                continue
             path = self.directory / kept.file
             if path.name == kept.file and path.is_file() and path.stat().st_size == kept.size:
                 found[graph] = kept
@@ -109,7 +116,7 @@ class KeptTexts:
         index = self._index()
         carried = {} if touched is None or index.get("generation") != since or since is None else {
             graph: entry for graph, entry in index.get("graphs", {}).items() if graph not in touched}
-        graphs = {**carried, **{g: {"file": k.file, "lines": k.lines, "size": k.size} for g, k in written.items()}}
+        graphs = {**carried, **{g: {"file": k.file, "lines": k.lines, "size": k.size, "form": FORM} for g, k in written.items()}}
         if graphs or self.directory.exists():
             self.directory.mkdir(exist_ok=True)
             tmp = self.directory / (INDEX + ".tmp")
