@@ -28,7 +28,9 @@ Then, up to ``--profile-max`` instances (default 100k), for each program:
   compression). The derived layer's share of mapping is the difference to a load without it;
 * **exports** of the loaded store (fresh process each): the program graph as N-Triples and as
   Part 21, the whole store as N-Quads, wall and CPU seconds and their ratio to the load, with the
-  time spent reading the quads apart from ordering and writing them.
+  time spent reading the graphs (from the text their load kept, else Oxigraph's dump) apart from
+  ordering and writing them; each beside the same export dumped from Oxigraph (the kept text
+  refused: the reference), with whether the bytes are the same.
 
 Rates and seconds are medians over ``--repeat`` runs (the profile and the exports: one run). The
 machine is shared: read CPU seconds and the ratios beside wall seconds.
@@ -104,7 +106,7 @@ def child(kind: str, path: str, extra: list[str]) -> None:
         child_profile(path, extra[0], kind == "profile", extra[1] if len(extra) > 1 else None)
         return
     if kind == "export":
-        child_export(path, extra[0], extra[1] if len(extra) > 1 else None)
+        child_export(path, extra[0], extra[1], extra[2] if len(extra) > 2 else None)
         return
     import stepnc_graph as sg
     from stepnc_graph.loading.loader import ntriples_chunks
@@ -252,26 +254,30 @@ def child_profile(path: str, store_dir: str, derived: bool, nquads: str | None) 
                       "graph": result.graph}))
 
 
-def child_export(store_dir: str, fmt: str, graph: str | None) -> None:
-    """One export from the kept store, its time split into reading the quads (Oxigraph's dump of
-    each graph, split by subject; for Part 21 the quads read one by one) and ordering and writing
-    them."""
+def child_export(store_dir: str, how: str, fmt: str, graph: str | None) -> None:
+    """One export from the kept store, its time split into reading the graphs (each graph's kept
+    text, or Oxigraph's dump of it, split by subject; for Part 21 the kept text, or the quads read
+    one by one) and ordering and writing them; ``how`` "dumped": the kept texts refused."""
+    import hashlib
     import importlib
 
     import stepnc_graph as sg
     from stepnc_graph.store import GraphStore
+    from stepnc_graph.store.reading import OxigraphReads
 
     export = importlib.import_module("stepnc_graph.exporting.exporter")  # the module: sg.export is the function
     clock = Clock()
     export._read_graph = clock.wrap(export._read_graph, "read")  # one graph's text, split by subject
     original_quads = GraphStore.quads  # the Part 21 writer's reading
     GraphStore.quads = clock.wrap_generator(original_quads, "read")  # type: ignore[method-assign]
+    kept_text = OxigraphReads.kept_text if how == "kept" else (lambda *args, **kwargs: False)
+    OxigraphReads.kept_text = clock.wrap(kept_text, "read")  # type: ignore[method-assign]
     with sg.open_store(store_dir, readonly=True) as store:
         started, cpu = time.perf_counter(), time.process_time()
         data = sg.export(store, fmt, graph)
         seconds, cpu = time.perf_counter() - started, time.process_time() - cpu
     print(json.dumps({"seconds": seconds, "cpu": cpu, "read": clock.spent.get("read", 0.0),
-                      "bytes": len(data), "rss_mb": _rss_mb()}))
+                      "bytes": len(data), "rss_mb": _rss_mb(), "sha": hashlib.sha256(data).hexdigest()}))
 
 
 def run_child(*args: str, timeout: float = 3600, src: str | None = None) -> dict[str, Any] | None:
@@ -328,12 +334,16 @@ def profile(program: str, path: Path, work: Path, load: dict[str, float], bulk_f
     for fmt, graph, what in (("nt", on["graph"], "program graph as N-Triples"),
                              ("p21", on["graph"], "program graph as Part 21"),
                              ("nq", None, "whole store as N-Quads")):
-        row = run_child("export", str(store_dir), fmt, *([graph] if graph else []))
-        if row is None:
-            continue
-        print(f"  {what:30} {row['seconds']:6.1f} s wall {row['cpu']:6.1f} s CPU ({row['cpu'] / load['cpu']:4.2f}x "
-              f"the load's CPU; reading the quads {row['read']:5.1f} s, ordering and writing "
-              f"{row['cpu'] - row['read']:5.1f} s) {row['bytes'] / 1e6:6.1f} MB, {row['rss_mb']:,.0f} MB peak")
+        rows = {how: run_child("export", str(store_dir), how, fmt, *([graph] if graph else []))
+                for how in ("kept", "dumped")}
+        for how, row in rows.items():
+            if row is None:
+                continue
+            same = "" if how == "kept" or rows["kept"] is None else \
+                f", {row['cpu'] / rows['kept']['cpu']:.2f}x the above, {'same' if row['sha'] == rows['kept']['sha'] else 'OTHER'} bytes"
+            print(f"  {what if how == 'kept' else '  the same, dumped':30} {row['seconds']:6.1f} s wall {row['cpu']:6.1f} s CPU "
+                  f"({row['cpu'] / load['cpu']:4.2f}x the load's CPU; reading {row['read']:5.1f} s, ordering and writing "
+                  f"{row['cpu'] - row['read']:5.1f} s) {row['bytes'] / 1e6:6.1f} MB, {row['rss_mb']:,.0f} MB peak{same}")
     shutil.rmtree(store_dir, ignore_errors=True)
     return on
 
