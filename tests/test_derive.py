@@ -119,16 +119,18 @@ def test_steps_carry_their_program_workingstep_and_operation() -> None:
 
 
 def test_steps_carry_the_names_and_tool_their_rows_show() -> None:
-    """The names (its_id) of a step's workingstep, operation, workplan, setup and tool, the tool's #id
-    and its body's class (sga:workingstepName ... sga:toolBodyClass, layer version 3) are what the
-    file's graph says of them, read there independently; every step of the sleeve has them all."""
+    """A step's operation, the names (its_id) of its workingstep, operation, workplan, setup and tool,
+    the tool's #id and its body's class (sga:operation, sga:workingstepName ... sga:toolBodyClass,
+    layer version 3) are what the file's graph says of them, read there independently; every step
+    of the sleeve has them all."""
     store = sg.open_store(memory=True)
     [r] = sg.load(store, [SLEEVE])
     g = r.graph
-    shown = ("workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId", "toolBodyClass")
+    shown = ("operation", "workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId",
+             "toolBodyClass")
     on_steps = rows(store, g, "SELECT ?o " + " ".join(f"?{n}" for n in shown) + " WHERE { ?s sga:order ?o ; "
                     + " ; ".join(f"sga:{n} ?{n}" for n in shown) + " } ORDER BY ?o")
-    truth = rows(store, g, f"SELECT ?o ?w ?op ?wp ?su ?t ?tn ?bc WHERE {{ ?s sga:order ?o ; sga:executes ?ws ; "
+    truth = rows(store, g, f"SELECT ?o ?operation ?w ?op ?wp ?su ?t ?tn ?bc WHERE {{ ?s sga:order ?o ; sga:executes ?ws ; "
                  f"sga:workplan ?plan ; sga:setup ?setup ; sga:tool ?tool . GRAPH <{g}> {{ ?ws ?i1 ?w ; ?p ?operation . "
                  "?operation ?i2 ?op . ?plan ?i3 ?wp . ?setup ?i4 ?su . ?tool ?i5 ?t ; p21:id ?tn ; "
                  "stepnc:cutting_tool.its_tool_body ?body . ?body a ?bc } "
@@ -161,7 +163,7 @@ def test_a_layer_of_an_older_version_is_written_again_by_the_next_load(tmp_path:
     [r] = sg.load(store, [SLEEVE])
     fresh = sg.query(store, "workplan-sequence").serialize("csv")
     layer = ox.NamedNode(derived_graph_iri(r.graph))
-    new_terms = ("workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId",
+    new_terms = ("operation", "workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId",
                  "toolBodyClass", "featureId", "featureClass", "featureProgram", "layerVersion")
     for term in new_terms:
         for quad in list(store.oxigraph.quads_for_pattern(None, ox.NamedNode(ANALYSIS_NS + term), None, layer)):

@@ -263,10 +263,13 @@ class ExecutionOrder:
             yield from self._shown(me, s, tool_ids)
 
     def _shown(self, me: str, step: Step, ids: dict[Term, int]) -> Iterator[str]:
-        """The names, the tool's #id and its body's class on the step ``me``: what a row per step
-        shows of the things the step names (see :mod:`.derive`)."""
+        """The operation, the names, the tool's #id and its body's class on the step ``me``: what a
+        row per step shows of the things the step names (see :mod:`.derive`)."""
         names = self.names
-        named = (("workingstepName", step.workingstep), ("operationName", self.op.get(step.workingstep)),
+        operation = self.op.get(step.workingstep)
+        if isinstance(operation, ox.NamedNode):
+            yield f"{me} {sga('operation')} {operation} .\n"
+        named = (("workingstepName", step.workingstep), ("operationName", operation),
                  ("workplanName", step.workplan), ("setupName", step.setup))
         for prop, thing in named:
             if thing is not None and (name := names.get(thing)) is not None:

@@ -99,6 +99,8 @@ ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
     AnalysisProperty("operationClass", "object", "ExecutionStep",
                      "The class of the operation of the workingstep the step executes, as the program's graph "
                      "types it (its own entity, not the superclasses the derived layer adds)."),
+    AnalysisProperty("operation", "object", "ExecutionStep",
+                     "The operation (its_operation) of the workingstep the step executes."),
     AnalysisProperty("workingstepName", "data", "ExecutionStep",
                      "The its_id of the workingstep the step executes (the data graph's value, copied so that "
                      "a query reads it in one scan of the steps)."),
