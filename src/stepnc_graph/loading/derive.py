@@ -26,8 +26,9 @@ same atomic load, replaced and removed with the file:
 * **what a row per step shows** -- on each step its program
   (``sga:program``), the #id of its workingstep (``sga:workingstepId``) and
   the #id and class of that workingstep's operation (``sga:operationId``,
-  ``sga:operationClass``); the names (its_id) of its workingstep, operation,
-  workplan, setup and tool (``sga:workingstepName`` ... ``sga:toolName``),
+  ``sga:operationClass``) and the operation itself (``sga:operation``); the
+  names (its_id) of its workingstep, operation, workplan, setup and tool
+  (``sga:workingstepName`` ... ``sga:toolName``),
   the tool's #id and its body's class (``sga:toolId``, ``sga:toolBodyClass``);
   and on each manufacturing feature its #id, class and program
   (``sga:featureId``, ``sga:featureClass``, ``sga:featureProgram``). The data
