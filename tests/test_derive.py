@@ -118,6 +118,64 @@ def test_steps_carry_their_program_workingstep_and_operation() -> None:
         assert order == order2 and graph == g and truth[ws] == (w, n, c)
 
 
+def test_steps_carry_the_names_and_tool_their_rows_show() -> None:
+    """A step's operation, the names (its_id) of its workingstep, operation, workplan, setup and tool,
+    the tool's #id and its body's class (sga:operation, sga:workingstepName ... sga:toolBodyClass,
+    layer version 3) are what the file's graph says of them, read there independently; every step
+    of the sleeve has them all."""
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [SLEEVE])
+    g = r.graph
+    shown = ("operation", "workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId",
+             "toolBodyClass")
+    on_steps = rows(store, g, "SELECT ?o " + " ".join(f"?{n}" for n in shown) + " WHERE { ?s sga:order ?o ; "
+                    + " ; ".join(f"sga:{n} ?{n}" for n in shown) + " } ORDER BY ?o")
+    truth = rows(store, g, f"SELECT ?o ?operation ?w ?op ?wp ?su ?t ?tn ?bc WHERE {{ ?s sga:order ?o ; sga:executes ?ws ; "
+                 f"sga:workplan ?plan ; sga:setup ?setup ; sga:tool ?tool . GRAPH <{g}> {{ ?ws ?i1 ?w ; ?p ?operation . "
+                 "?operation ?i2 ?op . ?plan ?i3 ?wp . ?setup ?i4 ?su . ?tool ?i5 ?t ; p21:id ?tn ; "
+                 "stepnc:cutting_tool.its_tool_body ?body . ?body a ?bc } "
+                 "FILTER(STRENDS(STR(?i1), '.its_id') && STRENDS(STR(?p), 'workingstep.its_operation') && "
+                 "STRENDS(STR(?i2), '.its_id') && STRENDS(STR(?i3), '.its_id') && STRENDS(STR(?i4), '.its_id') && "
+                 "STRENDS(STR(?i5), '.its_id')) } ORDER BY ?o")
+    assert len(on_steps) == len(truth) == 13 and on_steps == truth
+
+
+def test_features_carry_their_id_class_and_program() -> None:
+    """sga:featureId, sga:featureClass and sga:featureProgram on each manufacturing feature are its
+    p21:id, the class the file's graph types it with and the file's graph."""
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [SLEEVE])
+    g = r.graph
+    facts = rows(store, g, "SELECT ?f ?n ?c ?p WHERE { ?f sga:featureId ?n ; sga:featureClass ?c ; "
+                           "sga:featureProgram ?p } ORDER BY ?f")
+    truth = rows(store, g, "SELECT ?f ?n ?c ?p WHERE { ?f a stepnc:manufacturing_feature . GRAPH ?p { ?f p21:id ?n ; "
+                           "a ?c } } ORDER BY ?f")
+    assert len(facts) >= 5 and facts == truth and {p for *_, p in truth} == {g}
+
+
+def test_a_layer_of_an_older_version_is_written_again_by_the_next_load(tmp_path: Path) -> None:
+    """A store whose layer is of version 2 (no names on the steps, no facts on the features) loses the
+    row-per-step queries' rows: the query warns, and loading the file again writes the current layer,
+    with the rows of a fresh load."""
+    from stepnc_graph.loading.derive import LAYER_VERSION
+
+    store = sg.open_store(tmp_path / "store")
+    [r] = sg.load(store, [SLEEVE])
+    fresh = sg.query(store, "workplan-sequence").serialize("csv")
+    layer = ox.NamedNode(derived_graph_iri(r.graph))
+    new_terms = ("operation", "workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId",
+                 "toolBodyClass", "featureId", "featureClass", "featureProgram", "layerVersion")
+    for term in new_terms:
+        for quad in list(store.oxigraph.quads_for_pattern(None, ox.NamedNode(ANALYSIS_NS + term), None, layer)):
+            store.oxigraph.remove(quad)
+    store.oxigraph.add(ox.Quad(layer, ox.NamedNode(ANALYSIS_NS + "layerVersion"), ox.Literal(LAYER_VERSION - 1), layer))
+    older = sg.query(store, "workplan-sequence")
+    assert any("from an older stepnc-graph" in w for w in older.warnings) and not older.rows
+    [r2] = sg.load(store, [SLEEVE])
+    again = sg.query(store, "workplan-sequence")
+    assert not again.warnings and again.serialize("csv") == fresh and store.count(layer.value) == r2.derived_triples
+
+
 def test_class_counts_are_the_instances_the_graph_types() -> None:
     from collections import Counter
 

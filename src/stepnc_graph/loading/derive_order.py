@@ -16,6 +16,7 @@ from stepnc_graph.core.naming import (
     P21_NS,
     STEPNC_NS,
     execution_step_iri,
+    instance_id,
 )
 from stepnc_graph.loading.derive_rules import RDF_NS, RDF_TYPE, DeriveRules, Term, integer_literal, sga
 
@@ -158,16 +159,23 @@ class ExecutionOrder:
         for s, p, o in reader.select(f"SELECT ?s ?p ?o WHERE {{ VALUES ?p {{ {values_clause(names)} }} ?s ?p ?o }}"):
             self.edges[(s, p.value[len(STEPNC_NS):])].append(o)
         self.tool: dict[Term, Term] = {}  # workingstep -> the tool of its operation
-        for ws, tool in reader.select(
-                f"SELECT ?ws ?tool WHERE {{ VALUES ?p {{ {values_clause(rules.operation_properties)} }} "
-                f"VALUES ?q {{ {values_clause(rules.tool_properties)} }} ?ws ?p ?op . ?op ?q ?tool }}"):
-            self.tool[ws] = tool
+        self.op: dict[Term, Term] = {}  # workingstep -> its operation
+        for ws, op, tool in reader.select(
+                f"SELECT ?ws ?op ?tool WHERE {{ VALUES ?p {{ {values_clause(rules.operation_properties)} }} "
+                f"?ws ?p ?op OPTIONAL {{ VALUES ?q {{ {values_clause(rules.tool_properties)} }} ?op ?q ?tool }} }}"):
+            self.op[ws] = op
+            if tool is not None:
+                self.tool[ws] = tool
         #: workingstep -> the #id and the classes (as typed in the program's graph) of its operation
         self.operation: dict[Term, tuple[int, list[Term]]] = {}
         for ws, cls, ident in reader.select(
                 f"SELECT ?ws ?c ?id WHERE {{ VALUES ?p {{ {values_clause(rules.operation_properties)} }} "
                 f"?ws ?p ?op . ?op a ?c ; <{P21_NS}id> ?id }}"):
             self.operation.setdefault(ws, (int(ident.value), []))[1].append(cls)
+        self.reader = reader
+        self.names = _names(reader, rules)
+        self.bodies = _classes_of(reader, rules, "tool_body", _tool_bodies(reader, rules))
+        self.features = _classes_of(reader, rules, "manufacturing_feature")
         self.steps: list[Step] = []
 
     def one(self, node: ox.NamedNode, prop: str) -> Term | None:
@@ -226,6 +234,7 @@ class ExecutionOrder:
         program, ws_id, op_id, op_class = (
             sga(n) for n in ("program", "workingstepId", "operationId", "operationClass"))
         graph_node = f"<{graph}>"
+        tool_ids = self.instance_ids(graph, set(self.tool.values()))
         spindle: Term | None = None  # the tool of the last step that had one
         for i, s in enumerate(self.steps):
             me = iri[i]
@@ -251,6 +260,55 @@ class ExecutionOrder:
                 spindle = used
             if i + 1 < len(self.steps) and self.steps[i + 1].root == s.root:
                 yield f"{me} {nxt} {iri[i + 1]} .\n"
+            yield from self._shown(me, s, tool_ids)
+
+    def _shown(self, me: str, step: Step, ids: dict[Term, int]) -> Iterator[str]:
+        """The operation, the names, the tool's #id and its body's class on the step ``me``: what a
+        row per step shows of the things the step names (see :mod:`.derive`)."""
+        names = self.names
+        operation = self.op.get(step.workingstep)
+        if isinstance(operation, ox.NamedNode):
+            yield f"{me} {sga('operation')} {operation} .\n"
+        named = (("workingstepName", step.workingstep), ("operationName", operation),
+                 ("workplanName", step.workplan), ("setupName", step.setup))
+        for prop, thing in named:
+            if thing is not None and (name := names.get(thing)) is not None:
+                yield f"{me} {sga(prop)} {name} .\n"
+        used = self.tool.get(step.workingstep)
+        if isinstance(used, ox.NamedNode):
+            if (name := names.get(used)) is not None:
+                yield f"{me} {sga('toolName')} {name} .\n"
+            if (number := ids.get(used)) is not None:
+                yield f"{me} {sga('toolId')} {integer_literal(number)} .\n"
+            yield from (f"{me} {sga('toolBodyClass')} {c} .\n" for c in self.bodies.get(used, ()))
+
+    def instance_ids(self, graph: str, things: Iterable[Term]) -> dict[Term, int]:
+        """The #id of each of ``things``: read from its IRI where the loader minted it for ``graph``
+        (:func:`~stepnc_graph.core.naming.instance_id`: no look-up), else its ``p21:id``."""
+        ids: dict[Term, int] = {}
+        other: list[Term] = []
+        for thing in things:
+            number = instance_id(graph, thing.value) if isinstance(thing, ox.NamedNode) else None
+            if number is None:
+                other.append(thing)
+            else:
+                ids[thing] = number
+        if other:
+            for thing, number in self.reader.select(
+                    f"SELECT ?x ?id WHERE {{ VALUES ?x {{ {' '.join(str(t) for t in other)} }} ?x <{P21_NS}id> ?id }}"):
+                ids[thing] = int(number.value)
+        return ids
+
+    def feature_facts(self, graph: str) -> Iterator[str]:
+        """On each manufacturing feature of the program: its #id, its classes as the program's graph
+        types it and the program (``sga:featureId``, ``sga:featureClass``, ``sga:featureProgram``), in
+        #id order."""
+        ident, cls, program = sga("featureId"), sga("featureClass"), sga("featureProgram")
+        ids = self.instance_ids(graph, self.features)
+        for feature, number in sorted(ids.items(), key=lambda kv: kv[1]):
+            yield f"{feature} {ident} {integer_literal(number)} .\n"
+            yield from (f"{feature} {cls} {c} .\n" for c in self.features[feature])
+            yield f"{feature} {program} <{graph}> .\n"
 
     def feature_triples(self) -> Iterator[str]:
         """``sga:feature`` from each workingstep to the features it machines, one line at a time."""
@@ -262,6 +320,46 @@ class ExecutionOrder:
             for t in targets:
                 if isinstance(t, ox.NamedNode):
                     yield f"{node} {feature} {t} .\n"
+
+
+def _names(reader: Reader, rules: DeriveRules) -> dict[Term, ox.Literal]:
+    """The its_id of every instance that has one (workingsteps, workplans, operations, setups,
+    tools, features, ...; the values ``attr:its_id`` has): what the steps' name facts copy."""
+    names: dict[Term, ox.Literal] = {}
+    its_id = sorted(p for p, g in rules.generic.items() if g.endswith("#its_id"))
+    for thing, name in reader.select(
+            f"SELECT ?x ?name WHERE {{ VALUES ?p {{ {values_clause(its_id)} }} ?x ?p ?name }}"):
+        if isinstance(name, ox.Literal):
+            names[thing] = name
+    return names
+
+
+def _tool_bodies(reader: Reader, rules: DeriveRules) -> dict[Term, list[Term]]:
+    """Each tool -> its tool bodies (one scan of the its_tool_body attributes)."""
+    properties = sorted(p for p, g in rules.generic.items() if g.endswith("#its_tool_body"))
+    bodies: dict[Term, list[Term]] = defaultdict(list)
+    for tool, body in reader.select(f"SELECT ?t ?b WHERE {{ VALUES ?q {{ {values_clause(properties)} }} ?t ?q ?b }}"):
+        bodies[tool].append(body)
+    return bodies
+
+
+def _classes_of(reader: Reader, rules: DeriveRules, root: str,
+                through: dict[Term, list[Term]] | None = None) -> dict[Term, list[Term]]:
+    """Each instance of a class the derived layer closes over ``root`` (any edition) -> the classes
+    the program's graph types it with, among those (its own entity, not the superclasses the layer
+    adds), sorted; one scan per class, no look-up per instance. With ``through`` (thing -> its
+    instances of ``root``): each thing -> the classes of its instances instead."""
+    iri = STEPNC_NS + root
+    classes = sorted(c for c, supers in rules.superclasses.items() if c == iri or iri in supers)
+    found: dict[Term, list[Term]] = defaultdict(list)
+    for thing, cls in reader.select(f"SELECT ?x ?c WHERE {{ VALUES ?c {{ {values_clause(classes)} }} ?x a ?c }}"):
+        if isinstance(thing, ox.NamedNode):
+            found[thing].append(cls)
+    for members in found.values():
+        members.sort(key=str)
+    if through is None:
+        return found
+    return {thing: [c for m in members for c in found.get(m, ())] for thing, members in through.items()}
 
 
 # -- writing -------------------------------------------------------------------

@@ -36,7 +36,9 @@ RDF_REST = ox.NamedNode(RDF_NS + "rest")
 XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
 #: the layer's format: what the library queries expect to find (``sga:layerVersion`` on the layer).
 #: 2: steps carry their program, workingstep #id, operation #id and class; class counts
-LAYER_VERSION = 2
+#: 3: steps carry their operation, the names of their workingstep, operation, workplan, setup and tool,
+#:    the tool's #id and its body's class; features their #id, class and program
+LAYER_VERSION = 3
 #: characters of layer text per bulk-load call: the store's own batch (see store.tuning.BATCH_CHARS)
 TEXT_PIECE = 12_000_000
 

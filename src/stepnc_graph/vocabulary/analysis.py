@@ -99,6 +99,28 @@ ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
     AnalysisProperty("operationClass", "object", "ExecutionStep",
                      "The class of the operation of the workingstep the step executes, as the program's graph "
                      "types it (its own entity, not the superclasses the derived layer adds)."),
+    AnalysisProperty("operation", "object", "ExecutionStep",
+                     "The operation (its_operation) of the workingstep the step executes."),
+    AnalysisProperty("workingstepName", "data", "ExecutionStep",
+                     "The its_id of the workingstep the step executes (the data graph's value, copied so that "
+                     "a query reads it in one scan of the steps)."),
+    AnalysisProperty("operationName", "data", "ExecutionStep",
+                     "The its_id of the operation of the workingstep the step executes."),
+    AnalysisProperty("workplanName", "data", "ExecutionStep", "The its_id of the step's sga:workplan."),
+    AnalysisProperty("setupName", "data", "ExecutionStep", "The its_id of the step's sga:setup."),
+    AnalysisProperty("toolName", "data", "ExecutionStep", "The its_id of the step's sga:tool."),
+    AnalysisProperty("toolId", "data", "ExecutionStep", "The Part 21 #id (p21:id) of the step's sga:tool."),
+    AnalysisProperty("toolBodyClass", "object", "ExecutionStep",
+                     "The class of the tool body of the step's sga:tool, as the program's graph types it (its "
+                     "own entity, not the superclasses the derived layer adds)."),
+    AnalysisProperty("featureId", "data", None,
+                     "On a manufacturing feature: its Part 21 #id (p21:id), in the derived layer so that a "
+                     "query reads the features' #ids in one scan instead of looking each one up."),
+    AnalysisProperty("featureClass", "object", None,
+                     "On a manufacturing feature: its class as the program's graph types it (its own entity, not "
+                     "the superclasses the derived layer adds)."),
+    AnalysisProperty("featureProgram", "object", None,
+                     "On a manufacturing feature: the loaded file's graph (the program) it belongs to."),
     AnalysisProperty("countedIn", "object", "ClassCount", "The loaded file's graph whose instances are counted."),
     AnalysisProperty("countedClass", "object", "ClassCount", "The class a class count counts the instances of."),
     AnalysisProperty("instanceCount", "data", "ClassCount",
