@@ -150,8 +150,9 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
     to the in-memory store instead (:meth:`RemoteStore._staged`), so none of that reaches the server.
     The server is asked only whether it keeps the load's xsd:double values (a probe graph of
     them, :func:`_probe_doubles`) and whether the graphs exist. Graphs that do not exist yet
-    are written under their own names by one N-Quads POST (one transaction: a failure, a
-    client killed mid-request or a server killed mid-load leaves nothing); a replacement by one
+    are written under their own names by one N-Quads POST (atomic: a failure, a client killed
+    mid-request or a server killed mid-load leaves nothing; by the server's bulk loader where
+    that is atomic too, :func:`~stepnc_graph.store.remote.atomic_bulk_post`); a replacement by one
     SPARQL Update of what changed since the old version, read meanwhile (:class:`OldVersion`,
     :func:`replace_by_difference`), or else one that drops the graphs and inserts the new ones
     (:func:`_commit_from`). Every load records its id in the program's :func:`token_graph`. One
@@ -161,7 +162,8 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
 
     Measured (10k instances of a replicated real program, Oxigraph 0.5.13): the load staged in
     the store cost the server 19.8 CPU-s (the swap 8.7, dropping the staging graphs 5.1), a new
-    program staged in the client 3.4; a replacement 24-31 against 11-16."""
+    program staged in the client 3.4 (by the bulk loader: 1.4-2.8); a replacement 24-31 against
+    11-16."""
     from stepnc_graph.store import GraphStore
 
     staging, target = _staging_names(store, graph, [*companions, token_graph(graph)])
@@ -211,6 +213,7 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str], befo
     names = {tmp: name for name, tmp in staging.items()}
     main = next(iter(staging))
     want = local.count(staging[main])
+    got: int | None = None  # the main graph's count read back, once it is this load's last write
     if existing:
         store.last_removal = "difference"
         if (whole := replace_by_difference(store, local, staging, UPDATE_QUADS, before)) is not None:
@@ -222,9 +225,10 @@ def _commit_from(store: "RemoteStore", local: Any, staging: dict[str, str], befo
         except BaseException:
             store._drop_quietly(names.values())
             raise
-        if store.count(main) != want:
+        if (got := store.count(main)) != want:
             _replace(store, local, staging)
-    if (got := store.count(main)) != want:
+            got = None
+    if (got := store.count(main) if got is None else got) != want:
         left = "" if got == 0 else " (what it holds now is not this load: `unload` it or load the file again)"
         raise RemoteError(f"{store.endpoint} answered the load of graph {main} ({want} triples) but holds {got} of "
                           f"them: it was not loaded{left}")
