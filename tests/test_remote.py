@@ -558,6 +558,42 @@ def test_only_servers_whose_bulk_load_is_atomic_get_one(header: str | None, bulk
     assert atomic_bulk_post(header) is bulk
 
 
+def test_the_body_is_every_graph_renamed_with_shared_blank_nodes_one_node_and_no_thread_left() -> None:
+    """The N-Quads body is Oxigraph's dump of each staged graph (made on a thread while it is
+    sent): every quad under its new name, a blank node two graphs share one label, pieces that end
+    at a line's end; a reader that stops early (a failed request) leaves no dump thread behind."""
+    import pyoxigraph as ox
+
+    from stepnc_graph.store import GraphStore
+
+    with GraphStore(None) as local:
+        shared = ox.BlankNode()
+        staged = {f"urn:staged:{i}": f"https://example.org/g{i}" for i in range(2)}
+        quads = [ox.Quad(ox.NamedNode(f"https://example.org/s{n}"), ox.NamedNode("https://example.org/p"),
+                         ox.Literal(f"value {n} .\n with a line break"), ox.NamedNode(g))
+                 for n in range(3000) for g in staged]
+        quads += [ox.Quad(ox.NamedNode("https://example.org/list"), ox.NamedNode("https://example.org/p"), shared,
+                          ox.NamedNode(g)) for g in staged]
+        local.oxigraph.extend(quads)
+        body = remote_load._NQuadsBody(local, staged)
+        body.piece = 4096
+        pieces = list(body)
+        assert len(pieces) > 10 and all(piece.endswith(b" .\n") for piece in pieces)
+        got = list(ox.parse(b"".join(pieces), ox.RdfFormat.N_QUADS))
+        assert sorted(str(q) for q in got if not isinstance(q.object, ox.BlankNode)) == sorted(
+            str(ox.Quad(q.subject, q.predicate, q.object, ox.NamedNode(staged[q.graph_name.value])))
+            for q in quads if not isinstance(q.object, ox.BlankNode))
+        assert len({q.object for q in got if isinstance(q.object, ox.BlankNode)}) == 1
+        assert sorted(q.graph_name.value for q in got if isinstance(q.object, ox.BlankNode)) == sorted(staged.values())
+        again = list(body)  # iterable again from the start: a request sent again sends it whole
+        assert b"".join(again) == b"".join(pieces)
+        before = threading.active_count()
+        reader = iter(body)
+        next(reader)
+        reader.close()  # type: ignore[attr-defined]
+        assert threading.active_count() == before
+
+
 def _keeping_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
     """The server answers every write of a load (the N-Quads POST and the replacement's update
     that streams the program) and keeps none of it."""
