@@ -15,7 +15,9 @@ each on loopback ports, persistent in a temporary directory (``--server`` picks 
   replacement, ``--replace``), then the file edited (three values changed, one instance added: a
   replacement by a few lines); median wall seconds, the CLI's CPU seconds, and for the endpoint the
   server's CPU seconds too (read from /proc for its pid), with ratios to the embedded load of a new
-  program and to the embedded load of the same kind.
+  program and to the embedded load of the same kind; for a new program, the three ratios apart:
+  wall, the server's CPU alone, and the CLI's and the server's CPU together, each over the embedded
+  load's.
 * **queries**: every library query through the Python API (:func:`stepnc_graph.querying.query.execute`,
   results written as SPARQL 1.1 JSON) on the embedded store and on the endpoint: one warm-up, then
   ``--repeat`` runs, medians of wall milliseconds and the endpoint's server CPU milliseconds; the
@@ -174,6 +176,10 @@ def print_loads(runs: dict[tuple[str, str], list[dict[str, float]]], kind: str, 
         print(f"{where + ', ' + name:<27} {wall:6.1f} {cpu:7.1f} {server_cpu:10.1f} {size / wall:8,.0f} "
               f"{wall / med(new, 'wall'):7.2f}x {(cpu + server_cpu) / med(new, 'cpu'):7.2f}x "
               f"{wall / med(same, 'wall'):8.2f}x {(cpu + server_cpu) / med(same, 'cpu'):7.2f}x")
+    far = runs["endpoint", "new"]
+    print(f"new program, endpoint over embedded: wall {med(far, 'wall') / med(new, 'wall'):.2f}x, server CPU "
+          f"{med(far, 'server_cpu') / med(new, 'cpu'):.2f}x, CLI + server CPU "
+          f"{(med(far, 'cpu') + med(far, 'server_cpu')) / med(new, 'cpu'):.2f}x (server CPU over the embedded CLI's)")
     print("(ratios: wall and CPU -- the CLI's and the server's CPU seconds -- over the embedded load of a new\n"
           " program (/new) and over the embedded load of the same kind, same program (/same), same run)\n", flush=True)
 
