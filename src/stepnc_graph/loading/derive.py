@@ -70,7 +70,7 @@ from stepnc_graph.core.naming import (
     class_count_iri,
     derived_graph_iri,
 )
-from stepnc_graph.loading.derive_order import ExecutionOrder, Lists, Reader, Step, values_clause
+from stepnc_graph.loading.derive_order import ORDER_LISTS, ExecutionOrder, Lists, Reader, Step, values_clause
 from stepnc_graph.loading.derive_rules import (
     LAYER_VERSION,
     RDF_NS,
@@ -105,7 +105,8 @@ class DerivedLayer:
 
 
 def derive(store: Store, graph: str, target: Callable[[str], str],
-           rules: DeriveRules | None = None, mapped: int | None = None) -> DerivedLayer:
+           rules: DeriveRules | None = None, mapped: int | None = None,
+           blank_mapped: int | None = None) -> DerivedLayer:
     """Compute the derived layer of the file graph ``graph`` and write it.
 
     ``target(name)`` is the physical graph to read or write for ``graph`` and
@@ -114,12 +115,19 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     triples the loader's mapper already wrote (:class:`DerivedTables`: the
     closure, the generic values that are no blank nodes and the labels); None
     when it wrote none (a JSON-LD load), and then a CONSTRUCT over the graph
-    finds them.
+    finds them. ``blank_mapped`` is the number of layer lines that name the
+    program's blank nodes (list positions, generic values that are lists or
+    typed values) the mapper wrote with the program's text
+    (:class:`~stepnc_graph.store.contract.Joint`); a store that writes blank
+    nodes loaded them, one that cannot did not, and None says the mapper wrote
+    none: then the walks below find and write them.
     """
     rules = rules or edition_rules(graph_editions(store, target(graph)))
     reader = Reader(store, target(graph))
     layer = derived_graph_iri(graph)
-    lists = Lists.read(reader, rules.list_properties)
+    streamed = blank_mapped is not None and store.capabilities.blank_node_writes
+    # with the list positions written, only the lists the order walks are read
+    lists = Lists.read(reader, ORDER_LISTS if streamed else rules.list_properties)
     order = ExecutionOrder(reader, rules, lists)
     steps = order.flatten()
     node = ox.NamedNode(target(layer))
@@ -133,7 +141,9 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         order.triples(graph), order.feature_triples(), instance_counts(reader, graph),
         [f"<{layer}> {sga('layerOf')} <{graph}> .\n", f"<{layer}> {sga('layerVersion')} {integer_literal(LAYER_VERSION)} .\n"]))
     del order
-    if store.capabilities.blank_node_writes:
+    if streamed:
+        written += blank_mapped or 0
+    elif store.capabilities.blank_node_writes:
         # The quads that hold blank nodes go as quads (a blank node has no name SPARQL or a
         # second text could give it), streamed: in one transaction when few, else in bulk calls
         written += store.add_quads(lists.index_quads(node))

@@ -6,7 +6,9 @@ measured"). So the producer (the caller's thread: parse and map) fills a bounded
 :data:`~stepnc_graph.store.tuning.LOAD_THREADS` threads each run a streaming ``bulk_load`` over it
 (pyoxigraph releases the GIL while loading; an in-memory store is fed differently, see
 :data:`~stepnc_graph.store.tuning.MEMORY_BATCH_CHARS`). Chunks end at instance boundaries and
-blank-node labels are unique per load, so every thread's document is self-contained.
+blank-node labels are unique per load, so every thread's document is self-contained; a
+:class:`~stepnc_graph.store.contract.Joint` chunk's companion lines travel in the same document as
+the text whose blank nodes they name, as N-Quads naming their graph.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import pyoxigraph as ox
 
 from stepnc_graph.store import tuning
 from stepnc_graph.store.batches import ChunkStream
-from stepnc_graph.store.contract import Chunk, Shadow
+from stepnc_graph.store.contract import Chunk, Joint
 from stepnc_graph.store.handoff import Handoff
 
 if TYPE_CHECKING:
@@ -62,16 +64,33 @@ class BulkLoad:
             raise self.errors[0]
 
     def _produce(self, graph: str, chunks: Iterable[Chunk]) -> None:
-        tee = self.store._tee
         for chunk in chunks:
-            into, data = (graph, chunk.encode("utf-8")) if type(chunk) is str else (
-                chunk.graph, chunk.text.encode("utf-8"))  # type: ignore[union-attr]
-            if tee is not None:
-                tee.write_bytes(into, data)
-            if isinstance(chunk, Shadow):  # the load writes those itself (see Shadow)
-                continue
-            if not self.work.put(data if type(chunk) is str else (into, data)):
+            if not self.work.put(self._item(graph, chunk)):
                 return  # a worker failed
+
+    def _item(self, graph: str, chunk: Chunk) -> Item:
+        """What a worker loads for ``chunk``, encoded once (also for the store's tee): the main
+        graph's text as N-Quads (N-Triples is N-Quads in the default graph, which is the main
+        graph), a :class:`Joint` chunk's companion lines after it with their graph's name, so the
+        two parts are one document and share blank nodes (see :class:`Joint`)."""
+        tee = self.store._tee
+        if isinstance(chunk, str):
+            data = chunk.encode("utf-8")
+            if tee is not None:
+                tee.write_bytes(graph, data)
+            return data
+        if isinstance(chunk, Joint):
+            data, lines = chunk.text.encode("utf-8"), chunk.lines.encode("utf-8")
+            if tee is not None:
+                tee.write_bytes(graph, data)
+                tee.write_bytes(chunk.graph, lines)
+            # each N-Triples line ends " .\n" (a line break inside a literal is escaped)
+            named = f" {ox.NamedNode(self.target(chunk.graph))} .\n".encode("utf-8")
+            return data + lines.replace(b" .\n", named)
+        data = chunk.text.encode("utf-8")
+        if tee is not None:
+            tee.write_bytes(chunk.graph, data)
+        return chunk.graph, data
 
     def _worker(self) -> None:
         try:
@@ -80,9 +99,9 @@ class BulkLoad:
                 large: list[Item] = []
                 ended = self._load_batch(large)
                 for item in large:
-                    into, data = ((ox.NamedNode(self.target(item[0])), item[1]) if isinstance(item, tuple)
-                                  else (self.main, item))
-                    self.store._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=into, lenient=True)
+                    into, data, kind = ((ox.NamedNode(self.target(item[0])), item[1], ox.RdfFormat.N_TRIPLES)
+                                        if isinstance(item, tuple) else (self.main, item, ox.RdfFormat.N_QUADS))
+                    self.store._db.bulk_load(data, kind, to_graph=into, lenient=True)
                 if self.work.aborted:  # another thread failed: what this one loaded is rolled back
                     return
         except BaseException as exc:  # noqa: BLE001 -- raised by the producer thread
@@ -95,10 +114,10 @@ class BulkLoad:
         if self.in_memory:
             data = b"".join(self._pull(tuning.MEMORY_BATCH_CHARS, large, ended))
             if data:
-                self.store._db.bulk_load(data, ox.RdfFormat.N_TRIPLES, to_graph=self.main, lenient=True)
+                self.store._db.bulk_load(data, ox.RdfFormat.N_QUADS, to_graph=self.main, lenient=True)
         else:
             stream = io.BufferedReader(ChunkStream(self._pull(tuning.BATCH_CHARS, large, ended)), 1 << 20)
-            self.store._db.bulk_load(stream, ox.RdfFormat.N_TRIPLES, to_graph=self.main, lenient=True)
+            self.store._db.bulk_load(stream, ox.RdfFormat.N_QUADS, to_graph=self.main, lenient=True)
         return bool(ended)
 
     def _pull(self, budget: int, large: list[Item], ended: list[bool]) -> Iterator[bytes]:
