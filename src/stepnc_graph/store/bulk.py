@@ -28,13 +28,13 @@ from stepnc_graph.store.handoff import Handoff
 if TYPE_CHECKING:
     from stepnc_graph.store.embedded import GraphStore
 
-#: what the producer hands a worker: the main graph's text, or a companion's (its graph, its text)
-Item = bytes | tuple[str, bytes]
+#: what the producer hands a worker: N-Quads, the main graph's in the default graph (see BulkLoad._item)
+Item = bytes
 
 
 class BulkLoad:
-    """One bulk load of ``chunks`` into ``graph`` of ``store``; a :class:`Companion` chunk goes on
-    its own into ``target(its graph)``. The first error of any thread aborts the hand-off, which
+    """One bulk load of ``chunks`` into ``graph`` of ``store``; a :class:`Companion` chunk's lines
+    go into ``target(its graph)`` in the same calls. The first error of any thread aborts the hand-off, which
     stops the producer and every worker (see :mod:`stepnc_graph.store.handoff`).
 
     No attribute or local name holds the database (workers read ``store._db`` at each call): a
@@ -68,11 +68,13 @@ class BulkLoad:
             if not self.work.put(self._item(graph, chunk)):
                 return  # a worker failed
 
-    def _item(self, graph: str, chunk: Chunk) -> Item:
-        """What a worker loads for ``chunk``, encoded once (also for the store's tee): the main
-        graph's text as N-Quads (N-Triples is N-Quads in the default graph, which is the main
-        graph), a :class:`Joint` chunk's companion lines after it with their graph's name, so the
-        two parts are one document and share blank nodes (see :class:`Joint`)."""
+    def _item(self, graph: str, chunk: Chunk) -> bytes:
+        """What a worker loads for ``chunk``, encoded once (also for the store's tee), as N-Quads:
+        the main graph's text as it is (N-Triples is N-Quads in the default graph, which is the
+        main graph), a companion's lines naming their graph -- after the text whose blank nodes
+        they name, for a :class:`Joint` chunk, so the two parts are one document. So a load is a
+        few bulk calls, whatever its companions: each call is one more set of table files that
+        RocksDB compacts later (see docs/loading.md, "The store's tuning, measured")."""
         tee = self.store._tee
         if isinstance(chunk, str):
             data = chunk.encode("utf-8")
@@ -80,17 +82,20 @@ class BulkLoad:
                 tee.write_bytes(graph, data)
             return data
         if isinstance(chunk, Joint):
-            data, lines = chunk.text.encode("utf-8"), chunk.lines.encode("utf-8")
+            data = chunk.text.encode("utf-8")
             if tee is not None:
                 tee.write_bytes(graph, data)
-                tee.write_bytes(chunk.graph, lines)
-            # each N-Triples line ends " .\n" (a line break inside a literal is escaped)
-            named = f" {ox.NamedNode(self.target(chunk.graph))} .\n".encode("utf-8")
-            return data + lines.replace(b" .\n", named)
-        data = chunk.text.encode("utf-8")
-        if tee is not None:
-            tee.write_bytes(chunk.graph, data)
-        return chunk.graph, data
+            return data + self._named(chunk.graph, chunk.lines)
+        return self._named(chunk.graph, chunk.text)
+
+    def _named(self, graph: str, text: str) -> bytes:
+        """N-Triples ``text`` of the companion ``graph`` (teed as such) as N-Quads of where that
+        graph is written now."""
+        lines = text.encode("utf-8")
+        if self.store._tee is not None:
+            self.store._tee.write_bytes(graph, lines)
+        # each N-Triples line ends " .\n" (a line break inside a literal is escaped)
+        return lines.replace(b" .\n", f" {ox.NamedNode(self.target(graph))} .\n".encode("utf-8"))
 
     def _worker(self) -> None:
         try:
@@ -99,9 +104,7 @@ class BulkLoad:
                 large: list[Item] = []
                 ended = self._load_batch(large)
                 for item in large:
-                    into, data, kind = ((ox.NamedNode(self.target(item[0])), item[1], ox.RdfFormat.N_TRIPLES)
-                                        if isinstance(item, tuple) else (self.main, item, ox.RdfFormat.N_QUADS))
-                    self.store._db.bulk_load(data, kind, to_graph=into, lenient=True)
+                    self.store._db.bulk_load(item, ox.RdfFormat.N_QUADS, to_graph=self.main, lenient=True)
                 if self.work.aborted:  # another thread failed: what this one loaded is rolled back
                     return
         except BaseException as exc:  # noqa: BLE001 -- raised by the producer thread
@@ -109,7 +112,7 @@ class BulkLoad:
             self.work.abort()
 
     def _load_batch(self, large: list[Item]) -> bool:
-        """One bulk_load call of the main graph's chunks; True when the hand-off has ended."""
+        """One bulk_load call of chunks; True when the hand-off has ended."""
         ended: list[bool] = []
         if self.in_memory:
             data = b"".join(self._pull(tuning.MEMORY_BATCH_CHARS, large, ended))
@@ -122,15 +125,15 @@ class BulkLoad:
 
     def _pull(self, budget: int, large: list[Item], ended: list[bool]) -> Iterator[bytes]:
         """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth; a chunk
-        too large for the streaming reader, or a companion's, ends the call and goes to ``large``;
-        the hand-off's end is noted in ``ended``."""
+        too large for the streaming reader ends the call and goes to ``large``; the hand-off's end
+        is noted in ``ended``."""
         used = 0
         while used < budget:
             item = self.work.get()
             if item is None:
                 ended.append(True)
                 return
-            if type(item) is not bytes or len(item) > tuning.DIRECT_CHARS:
+            if len(item) > tuning.DIRECT_CHARS:
                 large.append(item)
                 return
             used += len(item)
