@@ -28,8 +28,9 @@ from stepnc_graph.store.handoff import Handoff
 if TYPE_CHECKING:
     from stepnc_graph.store.embedded import GraphStore
 
-#: what the producer hands a worker: N-Quads, the main graph's in the default graph (see BulkLoad._item)
-Item = bytes
+#: what the producer hands a worker: text, and whether it is N-Quads (lines of a companion graph
+#: naming it) rather than N-Triples (the main graph's alone), see BulkLoad._item
+Item = tuple[bytes, bool]
 
 
 class BulkLoad:
@@ -68,10 +69,10 @@ class BulkLoad:
             if not self.work.put(self._item(graph, chunk)):
                 return  # a worker failed
 
-    def _item(self, graph: str, chunk: Chunk) -> bytes:
-        """What a worker loads for ``chunk``, encoded once (also for the store's tee), as N-Quads:
-        the main graph's text as it is (N-Triples is N-Quads in the default graph, which is the
-        main graph), a companion's lines naming their graph -- after the text whose blank nodes
+    def _item(self, graph: str, chunk: Chunk) -> Item:
+        """What a worker loads for ``chunk``, encoded once (also for the store's tee): the main
+        graph's text as it is (N-Triples is N-Quads in the default graph, which is the main
+        graph), a companion's lines as N-Quads naming their graph -- after the text whose blank nodes
         they name, for a :class:`Joint` chunk, so the two parts are one document. So a load is a
         few bulk calls, whatever its companions: each call is one more set of table files that
         RocksDB compacts later (see docs/loading.md, "The store's tuning, measured")."""
@@ -80,13 +81,13 @@ class BulkLoad:
             data = chunk.encode("utf-8")
             if tee is not None:
                 tee.write_bytes(graph, data)
-            return data
+            return data, False
         if isinstance(chunk, Joint):
             data = chunk.text.encode("utf-8")
             if tee is not None:
                 tee.write_bytes(graph, data)
-            return data + self._named(chunk.graph, chunk.lines)
-        return self._named(chunk.graph, chunk.text)
+            return data + self._named(chunk.graph, chunk.lines), True
+        return self._named(chunk.graph, chunk.text), True
 
     def _named(self, graph: str, text: str) -> bytes:
         """N-Triples ``text`` of the companion ``graph`` (teed as such) as N-Quads of where that
@@ -103,8 +104,8 @@ class BulkLoad:
             while not ended:
                 large: list[Item] = []
                 ended = self._load_batch(large)
-                for item in large:
-                    self.store._db.bulk_load(item, ox.RdfFormat.N_QUADS, to_graph=self.main, lenient=True)
+                for data, quads in large:
+                    self.store._db.bulk_load(data, _format(quads), to_graph=self.main, lenient=True)
                 if self.work.aborted:  # another thread failed: what this one loaded is rolled back
                     return
         except BaseException as exc:  # noqa: BLE001 -- raised by the producer thread
@@ -114,27 +115,36 @@ class BulkLoad:
     def _load_batch(self, large: list[Item]) -> bool:
         """One bulk_load call of chunks; True when the hand-off has ended."""
         ended: list[bool] = []
+        quads: list[bool] = []
         if self.in_memory:
-            data = b"".join(self._pull(tuning.MEMORY_BATCH_CHARS, large, ended))
+            data = b"".join(self._pull(tuning.MEMORY_BATCH_CHARS, large, ended, quads))
             if data:
-                self.store._db.bulk_load(data, ox.RdfFormat.N_QUADS, to_graph=self.main, lenient=True)
-        else:
-            stream = io.BufferedReader(ChunkStream(self._pull(tuning.BATCH_CHARS, large, ended)), 1 << 20)
+                self.store._db.bulk_load(data, _format(any(quads)), to_graph=self.main, lenient=True)
+        else:  # the format is chosen before the first chunk is read: streamed, both read alike
+            stream = io.BufferedReader(ChunkStream(self._pull(tuning.BATCH_CHARS, large, ended, quads)), 1 << 20)
             self.store._db.bulk_load(stream, ox.RdfFormat.N_QUADS, to_graph=self.main, lenient=True)
         return bool(ended)
 
-    def _pull(self, budget: int, large: list[Item], ended: list[bool]) -> Iterator[bytes]:
+    def _pull(self, budget: int, large: list[Item], ended: list[bool], quads: list[bool]) -> Iterator[bytes]:
         """Chunks for one streaming bulk_load call: at most ``budget`` characters' worth; a chunk
         too large for the streaming reader ends the call and goes to ``large``; the hand-off's end
-        is noted in ``ended``."""
+        is noted in ``ended``, whether each chunk is N-Quads in ``quads``."""
         used = 0
         while used < budget:
             item = self.work.get()
             if item is None:
                 ended.append(True)
                 return
-            if len(item) > tuning.DIRECT_CHARS:
+            if len(item[0]) > tuning.DIRECT_CHARS:
                 large.append(item)
                 return
-            used += len(item)
-            yield item
+            used += len(item[0])
+            quads.append(item[1])
+            yield item[0]
+
+
+def _format(quads: bool) -> ox.RdfFormat:
+    """How to read text from bytes: N-Triples where it is (Oxigraph reads it faster from bytes:
+    an in-memory load of a 100k-instance program's graph, ``validate FILE``'s, took 1.11x the CPU
+    as N-Quads), else N-Quads."""
+    return ox.RdfFormat.N_QUADS if quads else ox.RdfFormat.N_TRIPLES
