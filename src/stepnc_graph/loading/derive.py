@@ -46,11 +46,18 @@ they hold. The vocabulary graph still answers ``rdfs:subClassOf*`` for them.
 
 The loader's mapper writes the closure, the generic values and the labels
 while it maps (:class:`~stepnc_graph.mapping.mapper.DerivedTables`), so they
-stream into the layer with the load; a load that has no mapper (JSON-LD)
-gets them from one CONSTRUCT over the loaded graph instead, and a test
-requires both ways to give the same layer. The list positions and the order
-need walks over ``rdf:List`` chains, done in Python over a few SELECTs, as
-are generic values that are blank nodes.
+stream into the layer with the load; so do the list positions and the generic
+values that are blank nodes (lists, typed values): the mapper writes every
+list cell itself, and those lines go into the store in the same document as
+the program's text that holds the nodes
+(:class:`~stepnc_graph.store.contract.Joint`), since a blank node's label
+holds inside one document only. A load that has no mapper (JSON-LD) gets them
+from one CONSTRUCT and walks over ``rdf:List`` chains in Python over a few
+SELECTs on the loaded graph instead, as does a store that cannot write blank
+nodes (a remote one: SPARQL Update copies them there); tests require the ways
+to give the same layer. The execution order is always read from the loaded
+graph (a few SELECTs, and the workplans' lists only when the positions came
+with the program's text).
 
 The rules come from :mod:`.derive_rules`, the walks over lists and the execution order from
 :mod:`.derive_order`; this module writes the layer.
