@@ -5,6 +5,7 @@ time goes, each next to a reference measured in the same run.
     python bench/load_bench.py --sizes 10000 100000 1000000             # add 1M
     python bench/load_bench.py --sizes 100000 --programs replicated     # the issue-32 figures only
     python bench/load_bench.py --sizes 100000 --parse-only --repeat 5 --baseline OLD/src  # parse vs older code
+    python bench/load_bench.py --sizes 100000 --baseline OLD/src       # also the whole load vs older code
 
 For each size, on a generated program and on a replicated real one (bench/generate.py: copies of the
 shipped two-setup shaft unless ``--real`` names another), each measurement in a fresh process:
@@ -31,6 +32,10 @@ Then, up to ``--profile-max`` instances (default 100k), for each program:
   time spent reading the graphs (from the text their load kept, else Oxigraph's dump) apart from
   ordering and writing them; each beside the same export dumped from Oxigraph (the kept text
   refused: the reference), with whether the bytes are the same.
+
+With ``--baseline OLD/src`` (an older source tree's ``src/``), the parse and the whole load are also
+run with that code, runs alternating with this code's (so a change in the machine's load falls on
+both): the ratio of the two, and of each to pyoxigraph's bulk load.
 
 Rates and seconds are medians over ``--repeat`` runs (the profile and the exports: one run). The
 machine is shared: read CPU seconds and the ratios beside wall seconds.
@@ -348,16 +353,18 @@ def profile(program: str, path: Path, work: Path, load: dict[str, float], bulk_f
     return on
 
 
-def compare_parse(path: Path, repeat: int, baseline: str) -> None:
-    """Parse-only CPU of the ``baseline`` source tree's reader and this one's, runs alternating
-    (so that a change in the machine's load falls on both), each in a fresh process."""
+def compare(kind: str, path: Path, repeat: int, baseline: str) -> dict[str, dict[str, float]]:
+    """CPU of the ``baseline`` source tree's ``kind`` run ("parse", "load") and this one's, runs
+    alternating (so that a change in the machine's load falls on both), each in a fresh process;
+    returns the medians of each."""
     runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "this code": []}
     for _ in range(repeat):
         for name, src in (("baseline", baseline), ("this code", None)):
-            row = run_child("parse", str(path), src=src)
-            assert row is not None, f"the {name} parse failed"
+            row = run_child(kind, str(path), src=src)
+            assert row is not None, f"the {name} {kind} failed"
             runs[name].append(row)
-    print(f"  parse only, {repeat} runs each, alternating:  {'wall s':>8} {'CPU s':>8} {'best CPU':>9}")
+    what = "parse only" if kind == "parse" else "whole load"
+    print(f"  {what}, {repeat} runs each, alternating:  {'wall s':>8} {'CPU s':>8} {'best CPU':>9}")
     for name, rows in runs.items():
         print(f"  {name:42} {statistics.median(r['seconds'] for r in rows):8.2f} "
               f"{statistics.median(r['cpu'] for r in rows):8.2f} {min(r['cpu'] for r in rows):9.2f}")
@@ -366,6 +373,8 @@ def compare_parse(path: Path, repeat: int, baseline: str) -> None:
           f"median CPU, {min(r['cpu'] for r in new) / min(r['cpu'] for r in old):.3f}x best CPU, "
           f"{statistics.median(r['seconds'] for r in new) / statistics.median(r['seconds'] for r in old):.3f}x median wall",
           flush=True)
+    return {name: {"cpu": statistics.median(r["cpu"] for r in rows),
+                   "seconds": statistics.median(r["seconds"] for r in rows)} for name, rows in runs.items()}
 
 
 def main() -> None:
@@ -380,8 +389,8 @@ def main() -> None:
     ap.add_argument("--real", type=Path, default=HERE.parent / "examples" / "shaft_two_setups.stp",
                     help="a real program to replicate beside the generated one (default: the shipped example)")
     ap.add_argument("--baseline", metavar="SRC",
-                    help="also parse each program with the stepnc_graph of SRC (an older source tree's src/), "
-                         "runs alternating with this code's, --repeat each: the parse-only ratio")
+                    help="also parse and load each program with the stepnc_graph of SRC (an older source tree's "
+                         "src/), runs alternating with this code's, --repeat each: the ratios")
     ap.add_argument("--parse-only", action="store_true", help="measure the parse only (with --baseline: the ratio)")
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -410,7 +419,7 @@ def main() -> None:
             print(f"\n== {program} program, {size:,} instances ({path.name}, {path.stat().st_size / 1e6:.1f} MB)",
                   flush=True)
             if args.baseline:
-                compare_parse(path, repeat, args.baseline)
+                compare("parse", path, repeat, args.baseline)
             if args.parse_only:
                 if not args.baseline:
                     row = measure("parse", path, repeat, 3600)
@@ -420,6 +429,7 @@ def main() -> None:
             ref = measure("steputils", path, repeat, args.steputils_timeout)
             parse = measure("parse", path, repeat, 3600)
             load = measure("load", path, repeat, 3600)
+            base = compare("load", path, repeat, args.baseline) if args.baseline else None
             alone = measure("store", path, repeat, 3600)
             assert parse is not None and load is not None and alone is not None
             nquads = work / f"{program}-{size}.nq"
@@ -447,6 +457,9 @@ def main() -> None:
                       f"{load['rss_mb'] / bulk['rss_mb']:.2f}x peak memory"
                       + (f"; load / steputils parse {load['seconds'] / ref['seconds']:.2f}x wall" if ref else ""),
                       flush=True)
+                if base:
+                    print(f"  alternating runs against pyoxigraph bulk load: this code {base['this code']['cpu'] / bulk['cpu']:.2f}x "
+                          f"CPU, baseline {base['baseline']['cpu'] / bulk['cpu']:.2f}x CPU", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     print("\nmedians of --repeat runs, each in a fresh process; 'peak MB' is that process's maximum RSS; steputils\n"

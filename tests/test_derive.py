@@ -285,37 +285,43 @@ def _layer_by_construct(store: GraphStore, graph: str) -> set[ox.Quad]:
     return set(copy.quads(derived_graph_iri(graph)))
 
 
-@pytest.mark.parametrize("program", PROGRAMS, ids=[p.name for p in PROGRAMS])
-def test_the_mapper_writes_what_the_construct_finds(program: Path) -> None:
-    store = sg.open_store(memory=True)
+@pytest.mark.parametrize(("kind", "program"), [("memory", p) for p in PROGRAMS] + [("disk", p) for p in (EXAMPLE, SLEEVE, STRUCTURES)],
+                         ids=[f"memory-{p.name}" for p in PROGRAMS] + [f"disk-{p.name}" for p in (EXAMPLE, SLEEVE, STRUCTURES)])
+def test_the_mapper_writes_what_the_construct_finds(program: Path, kind: str, tmp_path: Path) -> None:
+    """The layer a load streams (the mapper's lines, those naming the program's blank nodes in the
+    same document as the program's text: list positions, generic values that are lists) is quad
+    for quad, blank nodes included, the layer derive() finds by reading the stored graph back
+    (the JSON-LD load's way), in memory and through the threaded loader on disk."""
+    store = sg.open_store(tmp_path / "store" if kind == "disk" else None, memory=kind == "memory")
     [r] = sg.load(store, [program], lenient=True)
     layer = set(store.quads(derived_graph_iri(r.graph)))
     assert layer == _layer_by_construct(store, r.graph)
     assert len(layer) == r.derived_triples
+    store.close()
 
 
 @pytest.mark.parametrize("program", PROGRAMS, ids=[p.name for p in PROGRAMS])
 def test_the_mappers_blank_node_lines_are_what_derive_writes_as_quads(program: Path) -> None:
     """The layer's lines with the program's blank nodes (list positions, generic values that are
-    blank nodes), which the mapper writes as Shadow chunks for a replacement to compare, are the
-    quads derive() writes: the program's text read with its blank node labels kept, derive's
-    queries over it give the same triples."""
+    blank nodes), which the mapper writes with the program's text (Joint chunks), are the quads
+    derive() finds by reading the graph back: the program's text read with its blank node labels
+    kept, derive's queries over it give the same triples."""
     from stepnc_graph.loading.derive import Lists, Reader
     from stepnc_graph.loading.loader import _Load
-    from stepnc_graph.store import Shadow
+    from stepnc_graph.store import Joint
 
     job = _Load.of_file(program, True, None, None)
     chunks = list(job.chunks())
     graph = ox.NamedNode(job.graph)
     store = ox.Store()
-    text = "".join(c for c in chunks if isinstance(c, str)).encode()
+    text = "".join(c.text if isinstance(c, Joint) else c for c in chunks if isinstance(c, str | Joint)).encode()
     store.extend(ox.Quad(t.subject, t.predicate, t.object, graph) for t in ox.parse(text, ox.RdfFormat.N_TRIPLES))
     rules, reader = iso14649_rules(), Reader(store, job.graph)  # type: ignore[arg-type]
     expected = {(q.subject, q.predicate, q.object) for q in Lists.read(reader, rules.list_properties).index_quads(graph)}
     expected |= {(s, p, o) for s, p, o in reader.select(rules.blank_values)}
-    shadow = "".join(c.text for c in chunks if isinstance(c, Shadow))
-    written = [(t.subject, t.predicate, t.object) for t in ox.parse(shadow.encode(), ox.RdfFormat.N_TRIPLES)]
-    assert set(written) == expected and len(written) == len(expected)
+    joint = "".join(c.lines for c in chunks if isinstance(c, Joint))
+    written = [(t.subject, t.predicate, t.object) for t in ox.parse(joint.encode(), ox.RdfFormat.N_TRIPLES)]
+    assert set(written) == expected and len(written) == len(expected) == job.blank_written
     if program in (EXAMPLE, SLEEVE):
         assert any(p.value == ANALYSIS_NS + "index" for _, p, _ in written)
 

@@ -51,11 +51,18 @@ they hold. The vocabulary graph still answers ``rdfs:subClassOf*`` for them.
 
 The loader's mapper writes the closure, the generic values and the labels
 while it maps (:class:`~stepnc_graph.mapping.mapper.DerivedTables`), so they
-stream into the layer with the load; a load that has no mapper (JSON-LD)
-gets them from one CONSTRUCT over the loaded graph instead, and a test
-requires both ways to give the same layer. The list positions and the order
-need walks over ``rdf:List`` chains, done in Python over a few SELECTs, as
-are generic values that are blank nodes.
+stream into the layer with the load; so do the list positions and the generic
+values that are blank nodes (lists, typed values): the mapper writes every
+list cell itself, and those lines go into the store in the same document as
+the program's text that holds the nodes
+(:class:`~stepnc_graph.store.contract.Joint`), since a blank node's label
+holds inside one document only. A load that has no mapper (JSON-LD) gets them
+from one CONSTRUCT and walks over ``rdf:List`` chains in Python over a few
+SELECTs on the loaded graph instead, as does a store that cannot write blank
+nodes (a remote one: SPARQL Update copies them there); tests require the ways
+to give the same layer. The execution order is always read from the loaded
+graph (a few SELECTs, and the workplans' lists only when the positions came
+with the program's text).
 
 The rules come from :mod:`.derive_rules`, the walks over lists and the execution order from
 :mod:`.derive_order`; this module writes the layer.
@@ -75,7 +82,7 @@ from stepnc_graph.core.naming import (
     class_count_iri,
     derived_graph_iri,
 )
-from stepnc_graph.loading.derive_order import ExecutionOrder, Lists, Reader, Step, values_clause
+from stepnc_graph.loading.derive_order import ORDER_LISTS, ExecutionOrder, Lists, Reader, Step, values_clause
 from stepnc_graph.loading.derive_rules import (
     LAYER_VERSION,
     RDF_NS,
@@ -110,7 +117,8 @@ class DerivedLayer:
 
 
 def derive(store: Store, graph: str, target: Callable[[str], str],
-           rules: DeriveRules | None = None, mapped: int | None = None) -> DerivedLayer:
+           rules: DeriveRules | None = None, mapped: int | None = None,
+           blank_mapped: int | None = None) -> DerivedLayer:
     """Compute the derived layer of the file graph ``graph`` and write it.
 
     ``target(name)`` is the physical graph to read or write for ``graph`` and
@@ -119,12 +127,19 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     triples the loader's mapper already wrote (:class:`DerivedTables`: the
     closure, the generic values that are no blank nodes and the labels); None
     when it wrote none (a JSON-LD load), and then a CONSTRUCT over the graph
-    finds them.
+    finds them. ``blank_mapped`` is the number of layer lines that name the
+    program's blank nodes (list positions, generic values that are lists or
+    typed values) the mapper wrote with the program's text
+    (:class:`~stepnc_graph.store.contract.Joint`); a store that writes blank
+    nodes loaded them, one that cannot did not, and None says the mapper wrote
+    none: then the walks below find and write them.
     """
     rules = rules or edition_rules(graph_editions(store, target(graph)))
     reader = Reader(store, target(graph))
     layer = derived_graph_iri(graph)
-    lists = Lists.read(reader, rules.list_properties)
+    streamed = blank_mapped is not None and store.capabilities.blank_node_writes
+    # with the list positions written, only the lists the order walks are read
+    lists = Lists.read(reader, ORDER_LISTS if streamed else rules.list_properties)
     order = ExecutionOrder(reader, rules, lists)
     steps = order.flatten()
     node = ox.NamedNode(target(layer))
@@ -138,7 +153,9 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         order.triples(graph), order.feature_triples(), order.feature_facts(graph), instance_counts(reader, graph),
         [f"<{layer}> {sga('layerOf')} <{graph}> .\n", f"<{layer}> {sga('layerVersion')} {integer_literal(LAYER_VERSION)} .\n"]))
     del order
-    if store.capabilities.blank_node_writes:
+    if streamed:
+        written += blank_mapped or 0
+    elif store.capabilities.blank_node_writes:
         # The quads that hold blank nodes go as quads (a blank node has no name SPARQL or a
         # second text could give it), streamed: in one transaction when few, else in bulk calls
         written += store.add_quads(lists.index_quads(node))

@@ -30,6 +30,9 @@ if TYPE_CHECKING:
 _ORDERED = {"workplan": "its_elements"}
 _UNORDERED = {"parallel": "branches", "non_sequential": "its_elements", "selective": "its_elements"}
 _BRANCHES = {"if_statement": ("true_branch", "false_branch"), "while_statement": ("body",)}
+#: the lists the execution order walks (:meth:`ExecutionOrder.children`, ``feature_triples``):
+#: when the layer's list positions came with the program's text, only these cells are read
+ORDER_LISTS = (*(f"{STEPNC_NS}{e}.{a}" for e, a in _ORDERED.items()), f"{STEPNC_NS}turning_workingstep.its_features")
 
 
 

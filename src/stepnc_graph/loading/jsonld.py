@@ -188,6 +188,7 @@ class JsonLdLoad:
         self.result = LoadResult(source.name, source.graph)
         #: none of the derived layer is written with the chunks: derive() finds it all in the store
         self.derived_written: int | None = None
+        self.blank_written: int | None = None
         self.derived = True  # whether the load writes a derived layer (see loader.load_source)
         doc = local_contexts(parse_json(raw, source.name), source.name)
         old, quads = program_graph(parse_quads(doc, instance_prefix(source.graph), source.name), source.name)

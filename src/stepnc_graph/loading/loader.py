@@ -49,7 +49,7 @@ from stepnc_graph.core.formats import reads_as
 from stepnc_graph.loading.sources import plan_sources, refuse_replacing_other_files
 from stepnc_graph.loading.common import DCT, OWL_SAME_AS, PROV, RDFS, LoadResult, Progress, Source, load_timestamp
 from stepnc_graph.core.naming import graph_layout
-from stepnc_graph.store.contract import Chunk, Companion, Shadow, Store
+from stepnc_graph.store.contract import Chunk, Companion, Joint, Store
 from stepnc_graph.graphs.vocabulary_graph import ensure_vocabulary
 
 if TYPE_CHECKING:
@@ -135,8 +135,11 @@ class _Load:
                                      name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
                                      edition_tables(self.choice.edition) if derived else None,
                                      None if positions else {}, self.other_edition)
-        #: derived-layer triples the mapper wrote (None: none, see derive())
+        #: derived-layer triples the mapper wrote into the layer's own chunks (None: none, see derive())
         self.derived_written: int | None = 0
+        #: derived-layer lines the mapper wrote with the program's text, as they name its blank
+        #: nodes (:class:`Joint`; None: none, see derive())
+        self.blank_written: int | None = 0
         self.derived = derived
         self.result = LoadResult(name, graph, edition=self.choice)
         self.known_schemas = {s.upper() for s in self.mapper.plans.model.schemas} | SCHEMA_ALIASES
@@ -172,11 +175,10 @@ class _Load:
             result.instances += 1
             if len(out) >= CHUNK_LINES:
                 result.triples += len(out)
-                yield "".join(out)
+                yield self.main_chunk("".join(out))
                 out.clear()
                 if len(derived) >= DERIVED_CHUNK_LINES:
                     yield self.derived_chunk()
-                    yield self.shadow_chunk()
                 if self.progress:
                     self.progress(inst.end, total)
         out.extend(self.aliases())
@@ -193,11 +195,9 @@ class _Load:
         result.in_other_editions = group_other_forms(self.mapper.other_forms)
         meta = self.metadata()
         result.triples += len(meta)
-        yield "".join(out) + "".join(meta)
+        yield self.main_chunk("".join(out) + "".join(meta))
         if derived:
             yield self.derived_chunk()
-        if self.mapper.derived_blank_lines:
-            yield self.shadow_chunk()
         if self.progress:
             self.progress(total, total)
 
@@ -209,11 +209,15 @@ class _Load:
         lines.clear()
         return chunk
 
-    def shadow_chunk(self) -> Shadow:
-        """The derived-layer lines with the program's blank nodes mapped so far, which
-        :func:`derive` writes as quads: for a replacement to compare (see :class:`Shadow`)."""
+    def main_chunk(self, text: str) -> str | Joint:
+        """The program's ``text`` as a chunk, with the derived-layer lines that name its blank
+        nodes (list positions, generic values that are lists or typed values) when it has any:
+        one document for the store, so a label names one node in both graphs (see :class:`Joint`)."""
         lines = self.mapper.derived_blank_lines
-        chunk = Shadow(derived_graph_iri(self.graph), "".join(lines))
+        if not lines:
+            return text
+        self.blank_written = (self.blank_written or 0) + len(lines)
+        chunk = Joint(text, derived_graph_iri(self.graph), "".join(lines))
         lines.clear()
         return chunk
 
@@ -371,7 +375,11 @@ def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | 
     diagnostic count) and the derived layer; the benchmark uses it to time the
     store on its own.
     """
-    yield from (c for c in _Load.of_file(path, lenient, base_iri, None, edition).chunks() if isinstance(c, str))
+    for chunk in _Load.of_file(path, lenient, base_iri, None, edition).chunks():
+        if isinstance(chunk, Joint):
+            yield chunk.text
+        elif isinstance(chunk, str):
+            yield chunk
 
 
 def load_source(store: Store, source: Source, *, lenient: bool = False,
@@ -415,7 +423,8 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
             # throw-away one gets it when a query first needs it (query.execute)
             ensure_vocabulary(store, target=target)
         if job.derived:
-            job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written).triples
+            job.result.derived_triples = derive(store, job.graph, target, mapped=job.derived_written,
+                                                blank_mapped=job.blank_written).triples
 
     store.replace_graph(job.graph, job.chunks(), before_commit, companions=(derived_graph_iri(job.graph),))
     job.result.diagnostics = sorted(job.diagnostics() + extra, key=lambda d: (d.line, d.column, d.code))

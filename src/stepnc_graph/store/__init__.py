@@ -55,13 +55,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Maintenance, Shadow, Store
+from stepnc_graph.store.contract import Capabilities, Chunk, Companion, Joint, Maintenance, Store
 from stepnc_graph.store.embedded import GraphStore, MemoryStore
 from stepnc_graph.store.errors import StoreBusy, StoreError, StoreWriteError
 from stepnc_graph.store.files import DEFAULT_STORE, FORMAT_VERSION, STORE_ENV, default_store_path, directory_bytes
 from stepnc_graph.store.locks import Writer
 
-__all__ = ["Capabilities", "Chunk", "Companion", "GraphStore", "Maintenance", "MemoryStore", "Shadow", "Store",
+__all__ = ["Capabilities", "Chunk", "Companion", "GraphStore", "Joint", "Maintenance", "MemoryStore", "Store",
            "StoreBusy", "StoreError", "StoreWriteError", "Writer", "DEFAULT_STORE", "STORE_ENV", "FORMAT_VERSION",
            "default_store_path", "directory_bytes", "open_store"]
 

@@ -67,20 +67,25 @@ class Companion:
 
 
 @dataclass(frozen=True)
-class Shadow:
-    """Lines of a companion graph that the load writes later as quads (``before_commit``), met
-    among the load's chunks as text whose blank nodes are named as in the main graph's chunks.
+class Joint:
+    """Text of the main graph (``text``) with lines of its companion ``graph`` (``lines``) that
+    name the text's blank nodes -- the derived layer's list positions on the program's list
+    cells, its generic values that are lists or typed values -- met among the load's chunks.
 
-    A store does not load them: a blank node cannot be named across documents, so the load
-    writes those quads itself. A replacement compares them, with the rest of the load's text,
-    against the version in the store (see :mod:`stepnc_graph.store`).
+    A blank node's label holds inside one document only (Oxigraph names a document's blank
+    nodes anew), so a store that writes blank nodes (:attr:`Capabilities.blank_node_writes`)
+    loads both parts as one document, the lines into the companion's graph. One that cannot
+    (a remote endpoint) loads ``text`` alone, and the load copies those facts inside the store
+    (:func:`stepnc_graph.loading.derive.derive`). Either way a replacement compares the lines,
+    named as in the main text, against the version in the store (see :mod:`stepnc_graph.store`).
     """
 
-    graph: str
     text: str
+    graph: str
+    lines: str
 
 
-Chunk = str | Companion | Shadow
+Chunk = str | Companion | Joint
 
 
 class Store(Protocol):

@@ -20,7 +20,7 @@ import pyoxigraph as ox
 from stepnc_graph.core.naming import STAGING, VOCABULARY_GRAPH
 from stepnc_graph.store.answers import _DOUBLE, _XSD_DOUBLE, RemoteError, _number
 from stepnc_graph.store.contract import Chunk
-from stepnc_graph.store.contract import Companion, Shadow
+from stepnc_graph.store.contract import Companion, Joint
 from stepnc_graph.store.remote_difference import (
     OldVersion,
     new_load_id,
@@ -45,9 +45,9 @@ def _batches(chunks: Iterable[Chunk], size: int) -> Iterator[tuple[str | None, b
     pending: list[bytes] = []
     used = 0
     for chunk in chunks:
-        if isinstance(chunk, Shadow):  # written by the load as quads (see Shadow)
-            continue
-        if isinstance(chunk, Companion):
+        if isinstance(chunk, Joint):  # the text alone: the load copies the lines in the store (see Joint)
+            chunk = chunk.text
+        elif isinstance(chunk, Companion):
             yield chunk.graph, chunk.text.encode("utf-8")
             continue
         data = chunk.encode("utf-8")
@@ -173,6 +173,8 @@ def replace_from_client(store: "RemoteStore", graph: str, chunks: Iterable[Chunk
 
     def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
         for chunk in chunks:
+            if isinstance(chunk, Joint):  # the text alone: the load copies the lines (see Joint)
+                chunk = chunk.text
             if type(chunk) is str:
                 doubles.update(_DOUBLE_TEXT.findall(chunk))
             yield chunk

@@ -119,7 +119,7 @@ class Replacement:
         and whether the new version was dumped (see below). The staged store is dropped on return.
 
         The new version's files are the text the load wrote (:class:`Tee`: its chunks, its
-        :class:`Shadow` lines, what ``before_commit`` added as N-Triples), when each holds as
+        :class:`~stepnc_graph.store.contract.Joint` lines, what ``before_commit`` added as N-Triples), when each holds as
         many lines as the staged store holds quads in that graph -- so no line was lost,
         repeated or merged with another. Else they are dumps of the staged store, which cost
         about as much as the dumps of the old version (Oxigraph decodes every term: 5-8 µs a
