@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import tempfile
+from contextlib import contextmanager
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, cast
@@ -77,12 +78,21 @@ def _part21(store: Store, graph: str) -> bytes:
     The kept text costs a fifth of Oxigraph's reading of the quads (a generated 100k-instance
     program: 2.6 CPU-s against 12-14); tests/test_export_kept.py compares both ways on every
     fixture, random and damaged programs."""
-    with tempfile.TemporaryDirectory(prefix="stepnc-graph-export-") as scratch:
-        path = Path(scratch) / "graph.nt"
-        if store.kept_text(graph, path, store_labels=False):  # the writer needs no label of the store's
+    with _kept(store, graph, store_labels=False) as path:  # the writer needs no label of the store's
+        if path is not None:
             return write_graph(iso14649_plans(), ox.parse(path=str(path), format=ox.RdfFormat.N_TRIPLES),
                                graph).encode("utf-8")
     return write_graph(iso14649_plans(), store.quads(graph), graph).encode("utf-8")
+
+
+@contextmanager
+def _kept(store: Store, graph: str, store_labels: bool) -> Iterator[Path | None]:
+    """The N-Triples file of ``graph`` written from the text its load kept
+    (:meth:`~stepnc_graph.store.contract.Store.kept_text`), removed on exit; None when the store
+    has none that still describes the graph."""
+    with tempfile.TemporaryDirectory(prefix="stepnc-graph-export-") as scratch:
+        path = Path(scratch) / "graph.nt"
+        yield path if store.kept_text(graph, path, store_labels) else None
 
 
 def _serialize(fmt: ox.RdfFormat, text: str, triples: bool, prefixes: dict[str, str] | None = None) -> bytes:
@@ -195,15 +205,14 @@ def _read_graph(store: Store, graph: str, alone: bool = True) -> tuple[_Triples,
         if predicate == id_predicate:
             numbered.append((int(obj[1:obj.index('"', 1)]), subject))
 
-    with tempfile.TemporaryDirectory(prefix="stepnc-graph-export-") as scratch:
-        path = Path(scratch) / "graph.nt"
-        if store.kept_text(graph, path, store_labels=not alone):
+    with _kept(store, graph, store_labels=not alone) as path:
+        if path is None:
+            _dump(store, ox.NamedNode(graph), take)
+        else:
             lines = _Lines(take)
             with open(path, "rb") as fh:
                 while data := fh.read(1 << 20):
                     lines.write(data)
-        else:
-            _dump(store, ox.NamedNode(graph), take)
     numbered.sort()
     return triples, numbered
 

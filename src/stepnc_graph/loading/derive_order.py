@@ -325,11 +325,17 @@ class ExecutionOrder:
                     yield f"{node} {feature} {t} .\n"
 
 
+def _carrying(rules: DeriveRules, attribute: str) -> list[str]:
+    """The properties whose generic value (``attr:<attribute>``) the layer writes: each entity's
+    own ``attribute`` property, sorted."""
+    return sorted(p for p, g in rules.generic.items() if g.endswith("#" + attribute))
+
+
 def _names(reader: Reader, rules: DeriveRules) -> dict[Term, ox.Literal]:
     """The its_id of every instance that has one (workingsteps, workplans, operations, setups,
     tools, features, ...; the values ``attr:its_id`` has): what the steps' name facts copy."""
     names: dict[Term, ox.Literal] = {}
-    its_id = sorted(p for p, g in rules.generic.items() if g.endswith("#its_id"))
+    its_id = _carrying(rules, "its_id")
     for thing, name in reader.select(
             f"SELECT ?x ?name WHERE {{ VALUES ?p {{ {values_clause(its_id)} }} ?x ?p ?name }}"):
         if isinstance(name, ox.Literal):
@@ -339,7 +345,7 @@ def _names(reader: Reader, rules: DeriveRules) -> dict[Term, ox.Literal]:
 
 def _tool_bodies(reader: Reader, rules: DeriveRules) -> dict[Term, list[Term]]:
     """Each tool -> its tool bodies (one scan of the its_tool_body attributes)."""
-    properties = sorted(p for p, g in rules.generic.items() if g.endswith("#its_tool_body"))
+    properties = _carrying(rules, "its_tool_body")
     bodies: dict[Term, list[Term]] = defaultdict(list)
     for tool, body in reader.select(f"SELECT ?t ?b WHERE {{ VALUES ?q {{ {values_clause(properties)} }} ?t ?q ?b }}"):
         bodies[tool].append(body)

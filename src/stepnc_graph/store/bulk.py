@@ -76,27 +76,24 @@ class BulkLoad:
         they name, for a :class:`Joint` chunk, so the two parts are one document. So a load is a
         few bulk calls, whatever its companions: each call is one more set of table files that
         RocksDB compacts later (see docs/loading.md, "The store's tuning, measured")."""
-        tee = self.store._tee
         if isinstance(chunk, str):
-            data = chunk.encode("utf-8")
-            if tee is not None:
-                tee.write_bytes(graph, data)
-            return data, False
+            return self._teed(graph, chunk), False
         if isinstance(chunk, Joint):
-            data = chunk.text.encode("utf-8")
-            if tee is not None:
-                tee.write_bytes(graph, data)
-            return data + self._named(chunk.graph, chunk.lines), True
+            return self._teed(graph, chunk.text) + self._named(chunk.graph, chunk.lines), True
         return self._named(chunk.graph, chunk.text), True
+
+    def _teed(self, graph: str, text: str) -> bytes:
+        """N-Triples ``text`` of ``graph`` encoded, and handed to the store's tee as such."""
+        data = text.encode("utf-8")
+        if self.store._tee is not None:
+            self.store._tee.write_bytes(graph, data)
+        return data
 
     def _named(self, graph: str, text: str) -> bytes:
         """N-Triples ``text`` of the companion ``graph`` (teed as such) as N-Quads of where that
         graph is written now."""
-        lines = text.encode("utf-8")
-        if self.store._tee is not None:
-            self.store._tee.write_bytes(graph, lines)
         # each N-Triples line ends " .\n" (a line break inside a literal is escaped)
-        return lines.replace(b" .\n", f" {ox.NamedNode(self.target(graph))} .\n".encode("utf-8"))
+        return self._teed(graph, text).replace(b" .\n", f" {ox.NamedNode(self.target(graph))} .\n".encode("utf-8"))
 
     def _worker(self) -> None:
         try:
