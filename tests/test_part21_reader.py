@@ -50,6 +50,30 @@ def test_every_parameter_kind() -> None:
     assert isinstance(inst.params[12], Ref)
 
 
+#: parameter values of every kind, as tokens (a string holds no space: the test spaces tokens apart)
+_VALUE_TOKENS = ["#12", "'it''s'", "'\\X2\\00E9\\X0\\'", "''", "1.5", "-2.", "3", "+4", "1.E-3", "-2.5e+2", ".T.",
+                 ".tcp.", "$", "*", "\"0F\"", "#ORIGIN", "@12", "1" * 30]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.one_of(st.sampled_from(_VALUE_TOKENS).map(lambda v: [v]),  # a value
+                          st.lists(st.sampled_from(_VALUE_TOKENS), max_size=3).map(  # a list of values
+                              lambda v: ["(", *[t for i, m in enumerate(v) for t in ([","] if i else []) + [m]], ")"]),
+                          st.sampled_from(_VALUE_TOKENS).map(lambda v: ["LENGTH_MEASURE", "(", v, ")"])),  # typed
+                max_size=6))
+def test_compact_and_spaced_parameters_read_alike(values: list[list[str]]) -> None:
+    """The reader reads a value and the ',' or ')' after it in one step when nothing separates
+    them (the common case), token by token otherwise: both give the same values."""
+    tokens: list[str] = ["("]
+    for k, v in enumerate(values):
+        tokens += [","] * (k > 0) + v
+    tokens.append(")")
+    [compact], _ = instances(f"#1=E{''.join(tokens)};")
+    [spaced], _ = instances(f"#1 = E {' '.join(tokens)} ;")
+    assert compact.params == spaced.params
+    assert [type(v) for v in compact.params] == [type(v) for v in spaced.params]
+
+
 def test_complex_instance_and_case_insensitive_names() -> None:
     [inst], _ = instances("#5=(Point(1.)Cartesian_Point((0.,1.))representation_item(''));")
     assert inst.name is None

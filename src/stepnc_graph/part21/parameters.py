@@ -4,6 +4,7 @@ tokens with an explicit stack, the regex match bound to a local."""
 
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING, Any
 
 from stepnc_graph.core.errors import show
@@ -16,6 +17,12 @@ if TYPE_CHECKING:
 
 _MAX_DEPTH = 200  # nested lists; deeper input is rejected, not a RecursionError or hang
 
+#: a value (reference, string, number, enumeration, ``$``, ``*``) and the ``,`` or ``)`` right after
+#: it, as :data:`TOKEN` reads them: one match where the token loop makes two, and the value's kind
+#: told by its first character (a replicated 100k-instance program: the parse 2.23 -> 1.5 CPU-s)
+_VALUE_THEN = re.compile(r"(#[0-9]+|'[^']*(?:''[^']*)*'|[+-]?[0-9]+(?:\.[0-9]*(?:[Ee][+-]?[0-9]+)?)?"
+                         r"|\.[A-Za-z_][A-Za-z0-9_]*\.|[$*])([,)])")
+
 
 def parse_params(r: Part21Reader, pos: int, p21_id: int | None) -> tuple[list[Any], int]:
     """Parse ``( value, ... )`` starting at the ``(`` at or after ``pos``.
@@ -24,8 +31,12 @@ def parse_params(r: Part21Reader, pos: int, p21_id: int | None) -> tuple[list[An
     damaged input is an error, never a RecursionError.
     """
     match = TOKEN.match
+    value_then = _VALUE_THEN.match
     text = r.text
-    kind, tok, start, pos = r._token(pos)
+    if text.startswith("(", pos):  # no whitespace or comment before it: the usual case
+        kind, tok, start, pos = "p", "(", pos, pos + 1
+    else:
+        kind, tok, start, pos = r._token(pos)
     if tok != "(":
         raise _Failure(f"expected '(', found {show(tok)}" if tok else "expected '(', found end of file", start, ("(",))
     stack: list[tuple[list[Any], str | None]] = []
@@ -35,6 +46,48 @@ def parse_params(r: Part21Reader, pos: int, p21_id: int | None) -> tuple[list[An
     unclosed = r._unclosed_from
     try:
         while True:
+            if expect_value and (m := value_then(text, pos)) is not None:
+                # the common case, a value and the ',' or ')' right after it, in one match (the
+                # general loop below takes anything else: whitespace, comments, nested and typed
+                # values, a string over lines, errors)
+                tok, sep = m.groups()
+                first = tok[0]
+                start = pos
+                if first == "#":
+                    kind = "ref"
+                    current.append(Ref(tok[1:]))
+                elif first == "'":
+                    if "\n" in tok:  # may be a string run on (repaired, or reported where it opened)
+                        m = None
+                    else:
+                        current.append(_decoded(tok, pos))
+                elif first == ".":
+                    current.append(Enum(tok[1:-1].upper()))
+                elif first == "$":
+                    current.append(UNSET)
+                elif first == "*":
+                    current.append(DERIVED)
+                elif "." in tok:
+                    current.append(float(tok))
+                else:
+                    kind = "int"
+                    current.append(int(tok))
+                if m is not None:
+                    pos = m.end()
+                    if sep == ",":
+                        continue
+                    finished, finished_typed = current, typed
+                    if not stack:
+                        return finished, pos
+                    current, typed = stack.pop()
+                    if finished_typed is not None:
+                        if len(finished) != 1:
+                            raise _Failure(f"typed parameter {finished_typed} needs exactly one value", pos - 1)
+                        current.append(Typed(finished_typed, finished[0]))
+                    else:
+                        current.append(finished)
+                    expect_value = False
+                    continue
             if pos >= unclosed and text.startswith("/*", pos):
                 raise _Failure("comment '/*' is never closed", pos, ("*/",))
             m = match(text, pos)
@@ -127,6 +180,14 @@ def runaway_failure(r: Part21Reader, opened: int, curly: int, swallowed: int) ->
         cause = f"; the typographic quote (U+2019) at {line}:{column} probably ends it (--lenient reads it so)"
     return _Failure(f"the string opened here is not closed before the next instance (line {next_line}){cause}",
                     opened, ("'",))
+
+
+def _decoded(tok: str, start: int) -> str:
+    """The string token ``tok`` at ``start`` decoded (one on a single line: nothing to repair)."""
+    try:
+        return decode(tok[1:-1])
+    except StringDecodeError as e:
+        raise _Failure(str(e), start + 1 + e.offset) from None
 
 
 def read_string(r: Part21Reader, tok: str, start: int, end: int, p21_id: int | None) -> tuple[str, int]:

@@ -44,6 +44,10 @@ __all__ = ["TOKEN", "Header", "Instance", "Part21Reader", "UnreadableText", "def
            "read_instance", "read_text"]
 
 _DEFINITION = re.compile(r"#([0-9]+)[ \t\r\n]*=")
+#: ``=NAME`` right after an instance's ``#id``, as TOKEN reads the name (see Part21Reader._instance)
+_HEAD = re.compile(r"=(!?[A-Za-z_][A-Za-z0-9_]*)")
+#: an ``#id`` after plain whitespace, as TOKEN reads it (see Part21Reader._data_section)
+_NEXT_REF = re.compile(r"[ \t\r\n]*(#[0-9]+)")
 _COMMENT = re.compile(r"/\*.*?\*/", re.S)
 
 
@@ -213,8 +217,13 @@ class Part21Reader:
 
     def _data_section(self, pos: int, index: int) -> Generator[Instance, None, int]:
         stray, self._stray = self._stray, False
+        next_ref = _NEXT_REF.match
         while True:
-            kind, tok, start, end = self._token(pos)
+            ref = next_ref(self.text, pos)
+            if ref is not None:  # the next instance's #id after plain whitespace, as TOKEN reads it
+                kind, tok, start, end = "ref", ref.group(1), ref.start(1), ref.end()
+            else:
+                kind, tok, start, end = self._token(pos)
             if kind == "kw":
                 upper = tok.upper()
                 if upper == "ENDSEC":
@@ -289,8 +298,12 @@ class Part21Reader:
             return end
 
     def _instance(self, p21_id: int, start: int, pos: int) -> tuple[Instance, int]:
-        pos = self._expect(pos, "=")
-        kind, tok, tstart, tend = self._token(pos)
+        head = _HEAD.match(self.text, pos)
+        if head is not None:  # '=' and the entity name with nothing between: one match, not two tokens
+            kind, tok, tend = "kw", head.group(1), head.end()
+        else:
+            pos = self._expect(pos, "=")
+            kind, tok, tstart, tend = self._token(pos)
         if kind == "kw":
             params, pos = parse_params(self, tend, p21_id)
             name: str | None = tok.upper()
@@ -312,18 +325,22 @@ class Part21Reader:
                 raise _Failure("empty complex instance", tstart, ("entity name",))
         else:
             raise _Failure(f"expected an entity name or '(', found {show(tok)}", tstart, ("entity name", "("))
-        kind, tok, tstart, tend = self._token(pos)
-        if tok == ";":
-            end = tend
-        elif self.lenient and (kind == "eof" or (kind == "ref" and _INSTANCE_START.match(self.text, tstart))
-                               or (kind == "kw" and tok.upper() == "ENDSEC")):
-            self._diagnose("P21-MISSING-SEMICOLON", pos, p21_id, "';' missing after the instance; read as present")
-            end = pos
-        else:
-            raise _Failure(f"expected ';', found {show(tok)}" if tok else "expected ';', found end of file", tstart,
-                           (";",))
+        end = pos + 1 if self.text.startswith(";", pos) else self._instance_end(pos, p21_id)
         line, column = self.position(start)
         return Instance(p21_id, name, params, line, column, start, end, parts), end
+
+    def _instance_end(self, pos: int, p21_id: int) -> int:
+        """Where the instance whose parameters end at ``pos`` ends: after its ``;`` (lenient: a
+        missing one is reported and assumed before the next instance, ``ENDSEC`` or the end)."""
+        kind, tok, tstart, tend = self._token(pos)
+        if tok == ";":
+            return tend
+        if self.lenient and (kind == "eof" or (kind == "ref" and _INSTANCE_START.match(self.text, tstart))
+                             or (kind == "kw" and tok.upper() == "ENDSEC")):
+            self._diagnose("P21-MISSING-SEMICOLON", pos, p21_id, "';' missing after the instance; read as present")
+            return pos
+        raise _Failure(f"expected ';', found {show(tok)}" if tok else "expected ';', found end of file", tstart,
+                       (";",))
 
 
 
