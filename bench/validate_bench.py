@@ -61,16 +61,29 @@ print(json.dumps({"wall": t2 - t1, "cpu": c2 - c1, "setup": t1 - t0, "engine_wal
 """
 
 _OURS = r"""
-import json, resource, sys, time
-t0 = time.perf_counter(); c0 = time.process_time()
+import hashlib, json, resource, sys, time
+marks = [("start", time.perf_counter(), time.process_time(), time.thread_time())]
+def mark(name):
+    marks.append((name, time.perf_counter(), time.process_time(), time.thread_time()))
+def phase(text):  # validate()'s progress: the first line of each phase marks where the one before ended
+    name = {"loading": "shapes", "checking": "load", "describing": "checks"}.get(text.split()[0])
+    if name is not None and name not in [m[0] for m in marks]:
+        mark(name)
 from stepnc_graph.validation import validate
-report = validate([sys.argv[1]], lenient=True)  # what `stepnc-graph validate FILE` does
-t2 = time.perf_counter(); c2 = time.process_time()
+mark("imports")
+report = validate([sys.argv[1]], lenient=True, progress=phase)  # what `stepnc-graph validate FILE` does
+mark("report")
 keys = sorted({(x.focus, x.component, x.shape or "") for x in report.results})
-print(json.dumps({"total_s": t2 - t0, "total_cpu": c2 - c0, "results": len(report.results),
+phases = {b[0]: [b[1] - a[1], b[2] - a[2], b[3] - a[3]] for a, b in zip(marks, marks[1:])}
+print(json.dumps({"total_s": marks[-1][1] - marks[0][1], "total_cpu": marks[-1][2] - marks[0][2],
+                  "results": len(report.results), "phases": phases,
                   "checks": report.checks_run, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                  "keys": keys}))
+                  "keys": keys, "report": hashlib.sha256(report.to_json().encode()).hexdigest()}))
 """
+
+#: the phases of an end-to-end run (_OURS), as the bench prints them
+PHASES = {"imports": "imports", "shapes": "shapes and store", "load": "load", "checks": "checks",
+          "report": "describing and dropping the store"}
 
 _LOAD = r"""
 import json, sys, time
@@ -228,6 +241,7 @@ def _program(args: argparse.Namespace, kind: str, n: int, program: Path, tmp: Pa
           f"end to end (load {load['load_s']:.2f} s / {load['load_cpu']:.2f} CPU, validation "
           f"{ours['total_cpu'] - load['load_cpu']:.2f} CPU), {ours['rss_mb']:.0f} MB, {ours['checks']} checks, "
           f"{ours['results']} results", flush=True)
+    _phases(runs)
     if before:
         _baseline(args.baseline, before, runs)
     data, shapes = tmp / f"{kind}_{n}.nt", tmp / "shapes.ttl"
@@ -261,6 +275,17 @@ def _program(args: argparse.Namespace, kind: str, n: int, program: Path, tmp: Pa
         print(f"  fastest agreeing Rust engine / stepnc-graph: {fastest_rust / ours['total_cpu']:.1f}x CPU")
 
 
+def _phases(runs: list[dict[str, Any]]) -> None:
+    """Where the wall time of an end-to-end run goes, phase by phase (medians of the runs): wall,
+    CPU of the process (both cores) and of the calling thread (the critical path's Python part)."""
+    parts = []
+    for key, label in PHASES.items():
+        values = [r["phases"].get(key, [0.0, 0.0, 0.0]) for r in runs]
+        wall, cpu, thread = (statistics.median(v[i] for v in values) for i in range(3))
+        parts.append(f"{label} {wall:.2f} s wall / {cpu:.2f} CPU ({thread:.2f} in the calling thread)")
+    print("  phases, medians: " + "; ".join(parts), flush=True)
+
+
 def _baseline(src: Path, before: list[dict[str, Any]], runs: list[dict[str, Any]]) -> None:
     """Another version's end-to-end runs (alternating with this one's, same program) next to
     this one's: medians of CPU and wall seconds, and whether the results are the same."""
@@ -269,11 +294,11 @@ def _baseline(src: Path, before: list[dict[str, Any]], runs: list[dict[str, Any]
 
     (cpu0, wall0), (cpu1, wall1) = medians(before), medians(runs)
     least = min(r["total_cpu"] for r in runs) / min(r["total_cpu"] for r in before)  # the least disturbed runs
-    same = all(r["keys"] == runs[0]["keys"] and r["results"] == runs[0]["results"] for r in before)
+    same = all(r["report"] == runs[0]["report"] for r in before + runs)  # the whole JSON report, byte for byte
     print(f"  baseline {src}: {wall0:.2f} s wall, {cpu0:.2f} s CPU end to end -> this version "
           f"{cpu1 / cpu0:.2f}x its CPU ({least:.2f}x by the fastest runs), {wall1 / wall0:.2f}x its wall (runs alternating; CPU "
           f"{[round(r['total_cpu'], 2) for r in before]} against {[round(r['total_cpu'], 2) for r in runs]}); "
-          f"{'same results' if same else 'DIFFERENT results'}", flush=True)
+          f"{'the same JSON report' if same else 'DIFFERENT reports'}", flush=True)
 
 
 def main() -> None:

@@ -33,6 +33,102 @@ def test_the_fast_path_reports_what_the_full_path_reports(program: Path) -> None
     assert [r.asdict() for r in fast.results] == [r.asdict() for r in full.results]
 
 
+# -- the attributes no check reads ----------------------------------------------------------------------
+
+SHAFT = ROOT / "examples" / "shaft_two_setups.stp"
+STEPNC = "https://w3id.org/stepnc-graph/iso14649#"
+
+
+def _shaft(tmp_path: Path, old: str, new: str) -> Path:
+    text = SHAFT.read_text()
+    assert old in text
+    path = tmp_path / "shaft.stp"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def test_the_throwaway_graph_leaves_out_the_attributes_no_check_reads() -> None:
+    """The shipped checks that run on a clean program read neither placement names nor point
+    coordinates: ``validate FILE``'s load leaves them (and the coordinates' list cells) out."""
+    from stepnc_graph.loading.loader import load_paths
+    from stepnc_graph.validation.throwaway import properties_read
+
+    shapes = compile_shapes(shape_files())
+    reads = properties_read(list(shapes.checks))
+    assert reads is not None and f"{STEPNC}placement.name" not in reads
+    assert f"{STEPNC}axis2_placement_3d.axis" in reads
+    counts = []
+    for given in (None, reads):
+        with api.open_store(memory=True) as store:
+            [r] = load_paths(store, [SHAFT], lenient=True, derived=False, positions=False, reads=given)
+            g = ox.NamedNode(r.graph)
+            counts.append(len(store.oxigraph))
+            names = store.oxigraph.query(f"ASK {{ ?s <{STEPNC}placement.name> ?n }}", default_graph=g)
+            assert bool(names) is (given is None)
+            assert store.oxigraph.query(f"ASK {{ ?s <{STEPNC}axis2_placement_3d.axis> ?n }}", default_graph=g)
+    assert counts[1] < 0.85 * counts[0]
+
+
+@pytest.mark.parametrize("old, new", [
+    ("#201=CARTESIAN_POINT('ORIGIN',(0.,0.,0.));", "#201=CARTESIAN_POINT($,(0.,0.,0.));"),  # an unset mandatory name
+    ("#201=CARTESIAN_POINT('ORIGIN',(0.,0.,0.));", "#201=CARTESIAN_POINT('ORIGIN',(0.,$,0.));"),  # an unset member
+    ("#201=CARTESIAN_POINT('ORIGIN',(0.,0.,0.));", "#201=CARTESIAN_POINT('ORIGIN',(0.,0.,0.,1.));"),  # out of bounds
+], ids=["unset-mandatory", "unset-member", "list-out-of-bounds"])
+def test_the_attributes_left_out_come_back_with_the_checks_that_read_them(tmp_path: Path, old: str, new: str) -> None:
+    """A program without the mapping's guarantees gets the checks it implies, and every attribute
+    they read: the report of the full path, results included."""
+    program = _shaft(tmp_path, old, new)
+    fast = validate([program], lenient=True)
+    shapes = compile_shapes(shape_files())
+    with api.open_store(memory=True) as store:
+        [loaded] = api.load(store, [program], lenient=True, base_iri=fast.graphs[0])
+        full = _validate_store(store, [loaded.graph], shapes, list(shapes.checks), {loaded.graph: loaded.diagnostics})
+    assert fast.results and [r.asdict() for r in fast.results] == [r.asdict() for r in full.results]
+
+
+#: how an own check names the attribute: by its IRI, a prefixed name, or not at all (any
+#: predicate but rdf:type, any predicate)
+NAMINGS = {"iri": f"<{STEPNC}point.name>", "prefixed-name": "iso:point.name",
+           "negated": "!<http://www.w3.org/1999/02/22-rdf-syntax-ns#type>", "variable": "?p"}
+
+
+def _own_shape(tmp_path: Path, naming: str = "iri") -> Path:
+    """A rule of one's own on an attribute no shipped check reads: points must not be named 'ORIGIN'."""
+    name = NAMINGS[naming]
+    prefixes = ('sh:prefixes [ sh:declare [ sh:prefix "iso" ; sh:namespace "' + STEPNC + '"^^xsd:anyURI ] ] ;'
+                if naming == "prefixed-name" else "")
+    path = tmp_path / "own.ttl"
+    path.write_text(f"""@prefix sh: <http://www.w3.org/ns/shacl#> . @prefix xsd: <http://www.w3.org/2001/XMLSchema#> .
+<urn:own:NoOrigin> a sh:NodeShape ; sh:targetClass <{STEPNC}cartesian_point> ;
+  sh:sparql [ {prefixes} sh:message "named ORIGIN" ;
+    sh:select \"\"\"SELECT $this WHERE {{ $this {name} "ORIGIN" }}\"\"\" ] .
+""")
+    return path
+
+
+@pytest.mark.parametrize("naming", NAMINGS)
+@pytest.mark.parametrize("iso_shapes", [True, False], ids=["with-iso-shapes", "own-shapes-only"])
+def test_a_check_of_ones_own_reads_the_attributes_it_names(tmp_path: Path, naming: str, iso_shapes: bool) -> None:
+    """What the load leaves out is decided by the checks that run, one's own included: an
+    attribute only an own check reads (by its IRI, by a prefixed name, or through a negated or
+    variable predicate, which may read any) is in the graph."""
+    report = validate([SHAFT], lenient=True, extra_shapes=[_own_shape(tmp_path, naming)], iso_shapes=iso_shapes)
+    assert [(r.p21_id, r.message) for r in report.results if "ORIGIN" in r.message] == [(201, "named ORIGIN")]
+
+
+def test_a_reference_to_an_unreadable_instance_is_found_in_an_attribute_no_check_reads(tmp_path: Path) -> None:
+    """The dangling-reference check reads every attribute: with an unreadable instance, the load
+    writes them all, and a reference from one no check reads is still reported."""
+    program = _shaft(tmp_path, "#201=CARTESIAN_POINT('ORIGIN',(0.,0.,0.));",
+                     "#201=CARTESIAN_POINT('ORIGIN',(0.,0.,0.));\n#202=MATERIAL('A' 'B',('C'));")
+    program.write_text(program.read_text().replace("#11=MATERIAL('EN 10083-2','C45',(#12));",
+                                                   "#11=MATERIAL('EN 10083-2','C45',(#12,#202));"))
+    own = _own_shape(tmp_path)
+    report = validate([program], lenient=True, extra_shapes=[own], iso_shapes=False)
+    unresolved = [(r.p21_id, r.component) for r in report.results if "#202" in r.message]
+    assert unresolved == [(11, "loader:P21-UNRESOLVED-REF")]
+
+
 # -- the cheaper query forms --------------------------------------------------------------------------
 
 

@@ -20,7 +20,7 @@ from stepnc_graph.mapping import ntriples as T
 from stepnc_graph.mapping.editions import (decide_edition, edition_plans, group_other_forms, other_fit,
                                              other_form_sentences)
 from stepnc_graph.mapping.mapper import DerivedTables, InstanceMapper
-from stepnc_graph.mapping.plans import EntityPlan
+from stepnc_graph.mapping.plans import EntityPlan, unread_properties
 from stepnc_graph.loading.derive import derive, edition_tables
 from stepnc_graph.mapping.plans import (
     P21_DUPLICATE,
@@ -116,7 +116,7 @@ class _Load:
 
     def __init__(self, name: str, path: Path | None, raw: bytes, lenient: bool, graph: str,
                  progress: Progress | None, derived: bool = True, positions: bool = True,
-                 edition: str | None = None) -> None:
+                 edition: str | None = None, reads: frozenset[str] | None = None) -> None:
         self.path = path
         self.name = name
         text, encoding = decode_source(raw, name)
@@ -135,6 +135,8 @@ class _Load:
                                      name, text, (lambda i: section_iri(graph, i + 1)) if several else None,
                                      edition_tables(self.choice.edition) if derived else None,
                                      None if positions else {}, self.other_edition)
+        if reads is not None and not derived:  # the derived layer reads every attribute
+            self.mapper.hold = unread_properties(self.mapper.plans, reads)
         #: derived-layer triples the mapper wrote into the layer's own chunks (None: none, see derive())
         self.derived_written: int | None = 0
         #: derived-layer lines the mapper wrote with the program's text, as they name its blank
@@ -181,6 +183,9 @@ class _Load:
                     yield self.derived_chunk()
                 if self.progress:
                     self.progress(inst.end, total)
+        if self.needs_held():
+            out.extend(self.mapper.held)
+        self.mapper.held = []
         out.extend(self.aliases())
         out.extend(self.duplicates())
         out.extend(self.unreadable_texts())
@@ -200,6 +205,22 @@ class _Load:
             yield self.derived_chunk()
         if self.progress:
             self.progress(total, total)
+
+    def needs_held(self) -> bool:
+        """Whether the lines the mapper held back (attributes the caller does not read, see
+        ``load_source``'s ``reads``) are written after all: when the graph has what brings back the
+        checks the mapping otherwise guarantees -- a list out of its bounds, an unset mandatory
+        attribute or list member -- which read them, or references to instances the reader could
+        not read, which the dangling-reference check looks for in every attribute."""
+        m = self.mapper
+        return bool(m.held) and (not m.lists_within_bounds or not m.mandatory_values_set or m.unset_members
+                                 or bool(m.unreadable) or bool(self.missing()))
+
+    def missing(self) -> set[int]:
+        """#ids the file names in ``#12=`` only inside a string or unreadable text (edition 3: not
+        defined in another file)."""
+        external = {int(name[1:]) for name, _ in self.reader.header.references if name.startswith("#")}
+        return self.mapper.defined - self.reader.ids - external
 
     def derived_chunk(self) -> Companion:
         """The derived-layer lines mapped so far, as a chunk for the file's derived graph."""
@@ -332,8 +353,7 @@ class _Load:
         them as defined: it must know the names before reading): from mapped instances (found in
         the graph) and from raw ones (their parsed references)."""
         unreadable = self.mapper.unreadable
-        external = {int(name[1:]) for name, _ in self.reader.header.references if name.startswith("#")}
-        missing = self.mapper.defined - self.reader.ids - external  # edition 3: defined in another file
+        missing = self.missing()
         if not unreadable and not missing:
             return []
         found: set[tuple[int, int, int, int]] = set()  # (line, column, referrer, target)
@@ -384,7 +404,7 @@ def ntriples_chunks(path: str | Path, *, lenient: bool = False, base_iri: str | 
 
 def load_source(store: Store, source: Source, *, lenient: bool = False,
                 progress: Progress | None = None, derived: bool = True, positions: bool = True,
-                edition: str | None = None) -> LoadResult:
+                edition: str | None = None, reads: frozenset[str] | None = None) -> LoadResult:
     """Load one planned input (:func:`stepnc_graph.loading.sources.plan_sources`): a file or standard input;
     a ``.jsonld`` file is a program graph in JSON-LD (:mod:`stepnc_graph.loading.jsonld`).
 
@@ -392,7 +412,10 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
     validation reads (shapes see the program graph alone). ``positions=False``
     (Part 21 only) writes no ``p21:id``/``p21:line`` triples and returns the lines
     in :attr:`LoadResult.lines` instead, for the same use. ``edition`` reads a Part 21 file in
-    that edition of ISO 14649 (:data:`stepnc_graph.mapping.editions.EDITIONS`) whatever it shows."""
+    that edition of ISO 14649 (:data:`stepnc_graph.mapping.editions.EDITIONS`) whatever it shows.
+    ``reads`` (Part 21, ``derived=False``): the only attribute properties the caller reads, for a
+    throw-away graph that only the validator reads; the lines of other attributes are left out
+    unless the graph turns out to need them (:meth:`_Load.needs_held`)."""
     if source.path is not None and reads_as(source.path, "jsonld"):
         from stepnc_graph.loading.jsonld import JsonLdLoad
 
@@ -401,7 +424,7 @@ def load_source(store: Store, source: Source, *, lenient: bool = False,
         return _run(store, job)
     raw = read_source(source.path) if source.path is not None else read_stdin(name=source.name)
     return _run(store, _Load(source.name, source.path, raw, lenient, source.graph, progress, derived, positions,
-                             edition))
+                             edition, reads))
 
 
 def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
@@ -435,7 +458,7 @@ def _run(store: Store, job: "_Load | JsonLdLoad") -> LoadResult:
 def load_paths(store: Store, paths: Iterable[str | Path], *, lenient: bool = False, base_iri: str | None = None,
                progress: Progress | None = None, replace: bool = False, derived: bool = True,
                positions: bool = True, edition: str | None = None,
-               stdin_graph: str | None = None) -> list[LoadResult]:
+               stdin_graph: str | None = None, reads: frozenset[str] | None = None) -> list[LoadResult]:
     """:func:`stepnc_graph.api.load`: each input into its own named graph, planned first
     (``stdin_graph``: the graph of ``-`` without ``base_iri``, see :func:`plan_sources`)."""
     sources = plan_sources(list(paths), base_iri, stdin_graph)
@@ -444,7 +467,7 @@ def load_paths(store: Store, paths: Iterable[str | Path], *, lenient: bool = Fal
     if not replace:
         refuse_replacing_other_files(store, sources)
     return [load_source(store, s, lenient=lenient, progress=progress, derived=derived, positions=positions,
-                        edition=edition) for s in sources]
+                        edition=edition, reads=reads) for s in sources]
 
 
 def refuse_graph_name_clashes(store: Store, graphs: Sequence[str]) -> None:

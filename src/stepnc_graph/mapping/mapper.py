@@ -193,6 +193,13 @@ class InstanceMapper:
         #: (declaring entity, its_id) -> the one instance IRI with that label, or
         #: None when several instances share it (then it identifies nothing).
         self.labels: dict[tuple[str, str], str | None] = {}
+        #: whether a list mapped so far holds an unset member ($, written p21:unset)
+        self.unset_members = False
+        #: attribute properties whose lines (values, list cells) go to :attr:`held`, not the output
+        self.hold: frozenset[str] = frozenset()
+        #: the lines of :attr:`hold`'s attributes, of the instances mapped so far (see the loader)
+        self.held: list[str] = []
+        self._holding: list[str] = []  # those of the instance being mapped
 
     # -- values ----------------------------------------------------------------
 
@@ -266,6 +273,7 @@ class InstanceMapper:
         for i, v in enumerate(values):
             if v is UNSET:
                 term = P21_UNSET
+                self.unset_members = True
             elif nested and type(v) is list:
                 term = self._list_value(element, v, out, index)
             else:
@@ -299,6 +307,7 @@ class InstanceMapper:
         on = self.derived is not None and derived is not None
         generic = self.derived.generic if on else {}  # type: ignore[union-attr]
         indexed = self.derived.lists if on else frozenset()  # type: ignore[union-attr]
+        hold, holding = self.hold, self._holding
         for slot, value in zip(slots, params, strict=True):  # counts checked by _count
             if value is UNSET:
                 if not slot.optional:
@@ -309,25 +318,26 @@ class InstanceMapper:
                     self.mandatory_values_set = False
                 out.append(f"{s} {P21_DERIVED} <{slot.prop}> .\n")
                 continue
+            dest = holding if slot.prop in hold else out
             try:
                 if slot.repeated:
                     if type(value) is not list:
                         raise Mismatch("P21-VALUE-TYPE", f"expected a SET, found {describe(value)}")
                     if not value:
                         out.append(f"{s} {P21_EMPTY} <{slot.prop}> .\n")
-                    members = [self.encode(slot.encoding, v, out) for v in value]
+                    members = [self.encode(slot.encoding, v, dest) for v in value]
                     if len(set(members)) != len(members):
                         # repeated triples would merge them: report instead of losing one
                         raise Mismatch("P21-VALUE-TYPE", f"a SET cannot hold a member twice: {describe(value)}")
-                    out.extend(f"{s} <{slot.prop}> {m} .\n" for m in members)
+                    dest.extend(f"{s} <{slot.prop}> {m} .\n" for m in members)
                     if slot.prop in generic:
                         self._generic(s, slot.prop, generic[slot.prop], members, derived)  # type: ignore[arg-type]
                 else:
                     if type(value) is list and slot.encoding.kind == "list" and slot.prop in indexed:
-                        term = self._list_value(slot.encoding, value, out, self.derived_blank_lines)
+                        term = self._list_value(slot.encoding, value, dest, self.derived_blank_lines)
                     else:
-                        term = self.encode(slot.encoding, value, out)
-                    out.append(f"{s} <{slot.prop}> {term} .\n")
+                        term = self.encode(slot.encoding, value, dest)
+                    dest.append(f"{s} <{slot.prop}> {term} .\n")
                     if slot.prop in generic:
                         self._generic(s, slot.prop, generic[slot.prop], [term], derived)  # type: ignore[arg-type]
             except Mismatch as m:
@@ -366,6 +376,7 @@ class InstanceMapper:
         lines: list[str] = []
         labels: list[tuple[str, Any]] = []
         blank_mark = len(self.derived_blank_lines)
+        self._holding.clear()
         derived: list[str] | None = [] if self.derived is not None else None
         try:
             if inst.parts is None:
@@ -402,6 +413,7 @@ class InstanceMapper:
         for scope, value in labels:
             self._label(scope, value, s)
         out.extend(lines)
+        self.held += self._holding
         if derived:
             # a complex instance's partial classes share superclasses: each triple once
             self.derived_lines.extend(derived if inst.parts is None else dict.fromkeys(derived))
@@ -429,7 +441,7 @@ class InstanceMapper:
             known = unread_form(inst.name or "", len(inst.params)) if first.code == "P21-ARGUMENT-COUNT" else None
             raise first if known is None else Mismatch(first.code, f"{first.message}; {known}")
         edition, plan, tables, own = found
-        del lines[:], labels[:]
+        del lines[:], labels[:], self._holding[:]
         if derived is not None:
             del derived[:]
         if tables is not None and self.derived is not None:

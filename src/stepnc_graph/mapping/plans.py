@@ -81,6 +81,18 @@ class EntityPlan:
     own_its_id: int | None = None
 
 
+def unread_properties(plans: "Plans", reads: frozenset[str]) -> frozenset[str]:
+    """The attribute properties (bare IRIs) of ``plans`` that are not in ``reads`` and whose values
+    are never typed nodes (a SELECT's typed value is a node of its own class: any check targeting
+    that class reads it), so that a reader of ``reads`` alone does not miss their lines."""
+    def types_nodes(enc: Encoding | None) -> bool:
+        return enc is not None and ((enc.kind == "select" and bool(enc.typed))
+                                    or (enc.kind == "list" and types_nodes(enc.element)))
+
+    return frozenset(slot.prop for plan in plans.entities.values() for slot in (*plan.slots, *plan.own_slots)
+                     if slot.prop not in reads and not types_nodes(slot.encoding))
+
+
 class Plans:
     """Plans for every entity of a model, keyed by upper-case Part 21 name."""
 

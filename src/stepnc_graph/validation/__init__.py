@@ -35,7 +35,8 @@ from stepnc_graph.validation.runner import refuse_service, run
 from stepnc_graph.validation.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
 from stepnc_graph.validation.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validation.shapes import RDF_FIRST, IllFormedShapes, ShapesError, UnsupportedShapes
-from stepnc_graph.validation.throwaway import add_shapes_graph, rdf_graph, reads_positions, throwaway_store
+from stepnc_graph.validation.throwaway import (add_shapes_graph, properties_read, rdf_graph, reads_positions,
+                                               throwaway_store)
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
     from stepnc_graph.loading.common import LoadResult
@@ -126,8 +127,11 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         def read(position: int, total: int) -> None:
             phase(f"loading {len(programs):,} file(s): {100 * position // max(total, 1)} %")
 
+        read(0, 1)
+        # in memory, the attributes no check reads are left out (on disk, their lines are not held back)
+        reads = properties_read(checks) if store.path is None else None
         loaded = load(store, programs, lenient=lenient, derived=False, positions=reads_positions(checks),
-                      edition=edition, progress=read, stdin_graph=STDIN_GRAPH) if programs else []
+                      edition=edition, progress=read, stdin_graph=STDIN_GRAPH, reads=reads) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
         mapped = {r.graph: r for r in loaded if not r.path.lower().endswith(".jsonld")}
