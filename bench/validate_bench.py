@@ -10,14 +10,16 @@ on the W3C SHACL test suite and on programs of 10k and 100k instances, in one ru
    shipped two-setup shaft program, its mix of entities), at each size. stepnc-graph: the end to
    end time of ``validate([path])`` (``stepnc-graph validate FILE``: imports, Part 21 parse, load,
    checks, report) in a fresh process, and of its load alone in another, alternating, medians of
-   ``--repeat`` runs, with CPU seconds and peak RSS. The other engines get the program graph
+   ``--repeat`` runs, with CPU seconds and peak RSS, and the phases of the end-to-end run (wall,
+   CPU of the process and of the calling thread: where a user's wait goes). The other engines get the program graph
    plus ``shapes/support.ttl`` as a ready N-Triples file and the shipped shapes as one Turtle
    file: pySHACL (rdflib parse reported apart) up to ``--pyshacl-max`` instances, and each Rust
    engine that is installed (``pip install -e '.[bench]'``: shacl, shacl-rust, pyshacl-turbo,
    pyrudof) up to ``--rust-max``, each in a fresh process with a ``--timeout``. "same" compares
    each engine's results (focus node, component, IRI source shape) with stepnc-graph's.
    ``--baseline OTHER/src``: another version of stepnc-graph run end to end alternating with this
-   one, the ratio of their medians printed (before and after a change, same machine, same time).
+   one, the ratio of their medians printed (before and after a change, same machine, same time),
+   and whether the two versions' JSON reports are the same byte for byte.
 """
 
 from __future__ import annotations
