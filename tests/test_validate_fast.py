@@ -116,6 +116,20 @@ def test_a_check_of_ones_own_reads_the_attributes_it_names(tmp_path: Path, namin
     assert [(r.p21_id, r.message) for r in report.results if "ORIGIN" in r.message] == [(201, "named ORIGIN")]
 
 
+@pytest.mark.parametrize("where", ["$this ?p 'ORIGIN'", "$this ?p ?v . FILTER(?v = 'ORIGIN')",
+                                   "FILTER(true) $this ?p 'ORIGIN'", "$this ?p 'ORIGIN' ; a ?t"])
+def test_a_variable_predicate_before_any_object_keeps_every_attribute(tmp_path: Path, where: str) -> None:
+    """A check with a variable predicate may read any attribute, whatever its object is written as
+    (a single-quoted literal was missed once, and every name left out)."""
+    path = tmp_path / "own.ttl"
+    path.write_text(f"""@prefix sh: <http://www.w3.org/ns/shacl#> .
+<urn:own:NoOrigin> a sh:NodeShape ; sh:targetClass <{STEPNC}cartesian_point> ;
+  sh:sparql [ sh:message "named ORIGIN" ; sh:select \"\"\"SELECT $this WHERE {{ {where} }}\"\"\" ] .
+""")
+    report = validate([SHAFT], lenient=True, extra_shapes=[path], iso_shapes=False)
+    assert [(r.p21_id, r.message) for r in report.results if "ORIGIN" in r.message] == [(201, "named ORIGIN")]
+
+
 def test_a_reference_to_an_unreadable_instance_is_found_in_an_attribute_no_check_reads(tmp_path: Path) -> None:
     """The dangling-reference check reads every attribute: with an unreadable instance, the load
     writes them all, and a reference from one no check reads is still reported."""

@@ -61,8 +61,12 @@ def reads_positions(checks: Sequence[Check]) -> bool:
                for c in checks)
 
 
-#: a triple pattern whose predicate is a variable (after the subject, a variable or an IRI)
-_ANY_PREDICATE = re.compile(r"(?:[?$]\w+|<[^>\s]*>)\s+[?$]\w+\s+(?:[?$]\w+|<[^>\s]*>|\"|_:|\[|\d)")
+#: a triple pattern whose predicate is a variable: a variable after a subject (a variable, an IRI,
+#: a blank node's label, the end of a ``[...]``) and before an object (any term); after a ``)`` (a
+#: collection, or a FILTER's end before a pattern) only before a variable or a literal. Broad on
+#: purpose: a false match (``GROUP BY ?a ?b ?c``) only keeps every triple in the graph
+_ANY_PREDICATE = re.compile(r"(?:[?$]\w+|<[^>\s]*>|_:\w+|\])\s+[?$]\w+\s+[^\s.;,}]"
+                            r"|\)\s+[?$]\w+\s+(?!a\s)[^\s.;,}<]")
 #: a SELECT's projection (``SELECT DISTINCT ?this ?item ?dim``: three variables, no triple pattern)
 _PROJECTION = re.compile(r"\bSELECT\b[^{]*?(?=\bWHERE\b|\{)", re.IGNORECASE)
 
