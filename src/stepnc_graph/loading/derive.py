@@ -38,7 +38,7 @@ same atomic load, replaced and removed with the file:
   or thing (or, for the program, one per graph and step); read from the
   layer they are scans the query engine joins by hashing (docs/querying.md,
   "Speed"); a class's local name computed per row (``STRAFTER(STR(?class), "#")``)
-  cost a query about 9 µs a row, read from the layer about 2;
+  costs a query two string-table look-ups a row, read from the layer one;
 * **instance counts** -- one ``sga:ClassCount`` for every class the program's
   graph types instances with: ``sga:countedIn``, ``sga:countedClass`` and
   ``sga:instanceCount`` (the ``instance-counts`` query reads these few
