@@ -153,26 +153,48 @@ def test_features_carry_their_id_class_and_program() -> None:
     assert len(facts) >= 5 and facts == truth and {p for *_, p in truth} == {g}
 
 
+def test_type_names_are_the_local_names_of_the_classes() -> None:
+    """sga:operationType and sga:toolBodyType on each step, sga:typeName on each feature and each
+    operation (layer version 4) are the local names of the classes the file's graph types the step's
+    operation and tool body, the feature and the operation with, read there independently: what the
+    library's rows show as operation_type, tool_body and feature_type, once at load instead of per row."""
+    store = sg.open_store(memory=True)
+    [r] = sg.load(store, [SLEEVE])
+    g = r.graph
+    on_steps = rows(store, g, "SELECT ?o ?ot ?bt WHERE { ?s sga:order ?o ; sga:operationType ?ot ; "
+                              "sga:toolBodyType ?bt } ORDER BY ?o")
+    truth = rows(store, g, f"SELECT ?o ?ot ?bt WHERE {{ ?s sga:order ?o ; sga:operation ?op ; sga:tool ?tool . "
+                           f"GRAPH <{g}> {{ ?op a ?oc . ?tool stepnc:cutting_tool.its_tool_body ?body . ?body a ?bc }} "
+                           "BIND(STRAFTER(STR(?oc), '#') AS ?ot) BIND(STRAFTER(STR(?bc), '#') AS ?bt) } ORDER BY ?o")
+    assert len(on_steps) == len(truth) == 13 and on_steps == truth
+    named = rows(store, g, "SELECT ?x ?t WHERE { ?x sga:typeName ?t } ORDER BY ?x ?t")
+    things = rows(store, g, f"SELECT ?x ?t WHERE {{ {{ ?x a stepnc:manufacturing_feature }} UNION "
+                            f"{{ ?x a stepnc:operation }} GRAPH <{g}> {{ ?x a ?c }} "
+                            "BIND(STRAFTER(STR(?c), '#') AS ?t) } ORDER BY ?x ?t")
+    kinds = {t for _, t in things}
+    assert named == things and len(things) >= 18 and {"contouring_rough", "outer_diameter"} <= kinds
+
+
 def test_a_layer_of_an_older_version_is_written_again_by_the_next_load(tmp_path: Path) -> None:
-    """A store whose layer is of version 2 (no names on the steps, no facts on the features) loses the
-    row-per-step queries' rows: the query warns, and loading the file again writes the current layer,
-    with the rows of a fresh load."""
+    """A store whose layer is of the version before (no type names on the steps, features and
+    operations) loses the rows of the queries that show them (technology-per-workingstep: every row):
+    the query warns, and loading the file again writes the current layer, with the rows of a fresh
+    load."""
     from stepnc_graph.loading.derive import LAYER_VERSION
 
     store = sg.open_store(tmp_path / "store")
     [r] = sg.load(store, [SLEEVE])
-    fresh = sg.query(store, "workplan-sequence").serialize("csv")
+    fresh = sg.query(store, "technology-per-workingstep").serialize("csv")
     layer = ox.NamedNode(derived_graph_iri(r.graph))
-    new_terms = ("operation", "workingstepName", "operationName", "workplanName", "setupName", "toolName", "toolId",
-                 "toolBodyClass", "featureId", "featureClass", "featureProgram", "layerVersion")
+    new_terms = ("operationType", "toolBodyType", "typeName", "layerVersion")
     for term in new_terms:
         for quad in list(store.oxigraph.quads_for_pattern(None, ox.NamedNode(ANALYSIS_NS + term), None, layer)):
             store.oxigraph.remove(quad)
     store.oxigraph.add(ox.Quad(layer, ox.NamedNode(ANALYSIS_NS + "layerVersion"), ox.Literal(LAYER_VERSION - 1), layer))
-    older = sg.query(store, "workplan-sequence")
+    older = sg.query(store, "technology-per-workingstep")
     assert any("from an older stepnc-graph" in w for w in older.warnings) and not older.rows
     [r2] = sg.load(store, [SLEEVE])
-    again = sg.query(store, "workplan-sequence")
+    again = sg.query(store, "technology-per-workingstep")
     assert not again.warnings and again.serialize("csv") == fresh and store.count(layer.value) == r2.derived_triples
 
 

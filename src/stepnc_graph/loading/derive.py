@@ -29,13 +29,16 @@ same atomic load, replaced and removed with the file:
   ``sga:operationClass``) and the operation itself (``sga:operation``); the
   names (its_id) of its workingstep, operation, workplan, setup and tool
   (``sga:workingstepName`` ... ``sga:toolName``),
-  the tool's #id and its body's class (``sga:toolId``, ``sga:toolBodyClass``);
-  and on each manufacturing feature its #id, class and program
-  (``sga:featureId``, ``sga:featureClass``, ``sga:featureProgram``). The data
+  the tool's #id and its body's class (``sga:toolId``, ``sga:toolBodyClass``),
+  and the local names of the two classes (``sga:operationType``, ``sga:toolBodyType``);
+  on each manufacturing feature its #id, class and program
+  (``sga:featureId``, ``sga:featureClass``, ``sga:featureProgram``), and on it and on each
+  operation the local name of its class (``sga:typeName``). The data
   graph holds them too, but reading them there is one index look-up per step
   or thing (or, for the program, one per graph and step); read from the
   layer they are scans the query engine joins by hashing (docs/querying.md,
-  "Speed");
+  "Speed"); a class's local name computed per row (``STRAFTER(STR(?class), "#")``)
+  costs a query two string-table look-ups a row, read from the layer one;
 * **instance counts** -- one ``sga:ClassCount`` for every class the program's
   graph types instances with: ``sga:countedIn``, ``sga:countedClass`` and
   ``sga:instanceCount`` (the ``instance-counts`` query reads these few
@@ -150,7 +153,8 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     # ingestion on disk, whatever its size, and holds memory in proportion to it); the lines
     # are made as they are written (a program of 1M instances has ~300k of them here).
     written += _write_text(store, node.value, itertools.chain(
-        order.triples(graph), order.feature_triples(), order.feature_facts(graph), instance_counts(reader, graph),
+        order.triples(graph), order.feature_triples(), order.feature_facts(graph), order.operation_facts(graph),
+        instance_counts(reader, graph),
         [f"<{layer}> {sga('layerOf')} <{graph}> .\n", f"<{layer}> {sga('layerVersion')} {integer_literal(LAYER_VERSION)} .\n"]))
     del order
     if streamed:

@@ -19,6 +19,7 @@ from stepnc_graph.core.naming import (
     instance_id,
 )
 from stepnc_graph.loading.derive_rules import RDF_NS, RDF_TYPE, DeriveRules, Term, integer_literal, sga
+from stepnc_graph.mapping.ntriples import string
 
 if TYPE_CHECKING:
     from stepnc_graph.store import Store
@@ -234,8 +235,8 @@ class ExecutionOrder:
         cls = sga("ExecutionStep")
         order, executes, workplan, setup, nxt, tool, before = (
             sga(n) for n in ("order", "executes", "workplan", "setup", "next", "tool", "toolBefore"))
-        program, ws_id, op_id, op_class = (
-            sga(n) for n in ("program", "workingstepId", "operationId", "operationClass"))
+        program, ws_id, op_id, op_class, op_type = (
+            sga(n) for n in ("program", "workingstepId", "operationId", "operationClass", "operationType"))
         graph_node = f"<{graph}>"
         tool_ids = self.instance_ids(graph, set(self.tool.values()))
         spindle: Term | None = None  # the tool of the last step that had one
@@ -249,6 +250,7 @@ class ExecutionOrder:
             if (operation := self.operation.get(s.workingstep)) is not None:
                 yield f"{me} {op_id} {integer_literal(operation[0])} .\n"
                 yield from (f"{me} {op_class} {c} .\n" for c in operation[1])
+                yield from type_names(me, op_type, operation[1])
             if s.workplan is not None:
                 yield f"{me} {workplan} {s.workplan} .\n"
             if s.setup is not None:
@@ -284,6 +286,7 @@ class ExecutionOrder:
             if (number := ids.get(used)) is not None:
                 yield f"{me} {sga('toolId')} {integer_literal(number)} .\n"
             yield from (f"{me} {sga('toolBodyClass')} {c} .\n" for c in self.bodies.get(used, ()))
+            yield from type_names(me, sga("toolBodyType"), self.bodies.get(used, ()))
 
     def instance_ids(self, graph: str, things: Iterable[Term]) -> dict[Term, int]:
         """The #id of each of ``things``: read from its IRI where the loader minted it for ``graph``
@@ -304,14 +307,23 @@ class ExecutionOrder:
 
     def feature_facts(self, graph: str) -> Iterator[str]:
         """On each manufacturing feature of the program: its #id, its classes as the program's graph
-        types it and the program (``sga:featureId``, ``sga:featureClass``, ``sga:featureProgram``), in
-        #id order."""
-        ident, cls, program = sga("featureId"), sga("featureClass"), sga("featureProgram")
+        types it and their local names, and the program (``sga:featureId``, ``sga:featureClass``,
+        ``sga:typeName``, ``sga:featureProgram``), in #id order."""
+        ident, cls, name, program = sga("featureId"), sga("featureClass"), sga("typeName"), sga("featureProgram")
         ids = self.instance_ids(graph, self.features)
         for feature, number in sorted(ids.items(), key=lambda kv: kv[1]):
             yield f"{feature} {ident} {integer_literal(number)} .\n"
             yield from (f"{feature} {cls} {c} .\n" for c in self.features[feature])
+            yield from type_names(str(feature), name, self.features[feature])
             yield f"{feature} {program} <{graph}> .\n"
+
+    def operation_facts(self, graph: str) -> Iterator[str]:
+        """On each operation of the program: the local names of its classes as the program's graph
+        types it (``sga:typeName``), in #id order."""
+        name = sga("typeName")
+        operations = _classes_of(self.reader, self.rules, "operation")
+        for operation, _ in sorted(self.instance_ids(graph, operations).items(), key=lambda kv: kv[1]):
+            yield from type_names(str(operation), name, operations[operation])
 
     def feature_triples(self) -> Iterator[str]:
         """``sga:feature`` from each workingstep to the features it machines, one line at a time."""
@@ -323,6 +335,22 @@ class ExecutionOrder:
             for t in targets:
                 if isinstance(t, ox.NamedNode):
                     yield f"{node} {feature} {t} .\n"
+
+
+def type_names(subject: str, prop: str, classes: Iterable[Term]) -> Iterator[str]:
+    """The N-Triples lines giving ``subject`` (N-Triples text) the local name of each of ``classes``
+    as ``prop`` (see :func:`type_name`)."""
+    for cls in classes:
+        if isinstance(cls, ox.NamedNode):
+            yield f"{subject} {prop} {type_name(cls)} .\n"
+
+
+def type_name(cls: ox.NamedNode) -> str:
+    """The local name of a class (what follows the first ``#`` of its IRI, as SPARQL's
+    ``STRAFTER(STR(?class), "#")`` gives it) as an N-Triples string: the ``*_type`` column of a
+    library row, written once at load instead of computed per row by every query. A class is an
+    IRI; a term of another kind has no local name (``STR`` of a blank node is an error)."""
+    return string(cls.value.partition("#")[2])
 
 
 def _carrying(rules: DeriveRules, attribute: str) -> list[str]:

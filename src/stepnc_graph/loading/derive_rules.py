@@ -38,7 +38,9 @@ XSD_INTEGER = "http://www.w3.org/2001/XMLSchema#integer"
 #: 2: steps carry their program, workingstep #id, operation #id and class; class counts
 #: 3: steps carry their operation, the names of their workingstep, operation, workplan, setup and tool,
 #:    the tool's #id and its body's class; features their #id, class and program
-LAYER_VERSION = 3
+#: 4: steps carry the local names of their operation's and tool body's classes; features and
+#:    operations the local names of their own classes (sga:typeName)
+LAYER_VERSION = 4
 #: characters of layer text per bulk-load call: the store's own batch (see store.tuning.BATCH_CHARS)
 TEXT_PIECE = 12_000_000
 

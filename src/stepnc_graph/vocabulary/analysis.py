@@ -113,6 +113,15 @@ ANALYSIS_PROPERTIES: tuple[AnalysisProperty, ...] = (
     AnalysisProperty("toolBodyClass", "object", "ExecutionStep",
                      "The class of the tool body of the step's sga:tool, as the program's graph types it (its "
                      "own entity, not the superclasses the derived layer adds)."),
+    AnalysisProperty("operationType", "data", "ExecutionStep",
+                     "The local name of the step's sga:operationClass (contouring_rough for "
+                     "stepnc:contouring_rough), a string: what a row shows as the operation's type."),
+    AnalysisProperty("toolBodyType", "data", "ExecutionStep",
+                     "The local name of the step's sga:toolBodyClass, a string: what a row shows as the tool "
+                     "body's type."),
+    AnalysisProperty("typeName", "data", None,
+                     "On a manufacturing feature or an operation: the local name of the class "
+                     "the program's graph types it with (its own entity), a string: what a row shows as its type."),
     AnalysisProperty("featureId", "data", None,
                      "On a manufacturing feature: its Part 21 #id (p21:id), in the derived layer so that a "
                      "query reads the features' #ids in one scan instead of looking each one up."),
