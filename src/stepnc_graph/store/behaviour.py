@@ -77,6 +77,19 @@ def join_order_prologue(server: str | None) -> str:
     return next((b.prologue for b in behaviours(server) if b.capability == "plans_joins" and b.prologue), "")
 
 
+#: stores whose blank node labels, as their answers write them, name the node again when written
+#: as an IRI in a later request (the label's form): Virtuoso 7 labels a node ``nodeID://b10576``
+#: and reads ``<nodeID://b10576>`` in a query or an ``INSERT DATA`` as that node (tried: the node
+#: an answer gave, written so into another graph, is the program's node there, ``isBlank`` true)
+BLANK_NODE_IRIS: tuple[tuple[re.Pattern[str], str], ...] = ((VIRTUOSO, "nodeID://"),)
+
+
+def blank_node_iri_prefix(server: str | None) -> str:
+    """How the labels begin that a store with this ``Server`` header takes back as IRIs naming
+    its blank nodes ('' for a store that takes none: a label holds within one answer only)."""
+    return next((prefix for pattern, prefix in BLANK_NODE_IRIS if server is not None and pattern.match(server)), "")
+
+
 def wrong_answers(server: str | None, query: str) -> list[Behaviour]:
     """The behaviours that may change the rows of the library query named ``query``."""
     return [b for b in behaviours(server) if query in b.queries]

@@ -38,6 +38,8 @@ class Capabilities:
     ``plans_joins``: the store finds a good join order for a request by itself; one that does not
     (Virtuoso 7 on some data) gets the operations that join a ``VALUES`` block with a graph written
     block first, after ``join_order_prologue``, its own words for "join in the order written".
+    ``blank_node_iri_prefix``: a blank node's label in the store's answers that begins so, written
+    as an IRI, names that node in a later request (Virtuoso: ``nodeID://``); '' for none.
     """
 
     persistent: bool
@@ -47,6 +49,7 @@ class Capabilities:
     ordered_group_concat: bool = True
     plans_joins: bool = True
     join_order_prologue: str = ""
+    blank_node_iri_prefix: str = ""
 
 
 @dataclass(frozen=True)
