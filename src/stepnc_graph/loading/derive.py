@@ -62,8 +62,9 @@ the program's text that holds the nodes
 holds inside one document only. A load that has no mapper (JSON-LD) gets them
 from one CONSTRUCT and walks over ``rdf:List`` chains in Python over a few
 SELECTs on the loaded graph instead, as does a store that cannot write blank
-nodes (a remote one: SPARQL Update copies them there); tests require the ways
-to give the same layer. The execution order is always read from the loaded
+nodes (a remote one: SPARQL Update copies them there, and the list positions are
+written by the IRIs that name its blank nodes where its answers' labels are such
+IRIs, Virtuoso's ``nodeID://``); tests require the ways to give the same layer. The execution order is always read from the loaded
 graph (a few SELECTs, and the workplans' lists only when the positions came
 with the program's text).
 
@@ -86,6 +87,7 @@ from stepnc_graph.core.naming import (
     derived_graph_iri,
 )
 from stepnc_graph.loading.derive_order import ORDER_LISTS, ExecutionOrder, Lists, Reader, Step, values_clause
+from stepnc_graph.store.answers import store_label
 from stepnc_graph.loading.derive_rules import (
     LAYER_VERSION,
     RDF_NS,
@@ -140,9 +142,14 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     rules = rules or edition_rules(graph_editions(store, target(graph)))
     reader = Reader(store, target(graph))
     layer = derived_graph_iri(graph)
-    streamed = blank_mapped is not None and store.capabilities.blank_node_writes
-    # with the list positions written, only the lists the order walks are read
-    lists = Lists.read(reader, ORDER_LISTS if streamed else rules.list_properties)
+    capabilities = store.capabilities
+    streamed = blank_mapped is not None and capabilities.blank_node_writes
+    named = capabilities.blank_node_iri_prefix  # a remote store's labels name its blank nodes
+    # with the list positions written, or written by the store itself (a remote store whose
+    # labels name no node: one SPARQL Update, below), only the lists the order walks are read
+    # (Virtuoso 7.2, 10k instances: every process list's cells took its server 0.2-0.4 CPU-s)
+    walked = streamed or (not capabilities.blank_node_writes and not named)
+    lists = Lists.read(reader, ORDER_LISTS if walked else rules.list_properties)
     order = ExecutionOrder(reader, rules, lists)
     steps = order.flatten()
     node = ox.NamedNode(target(layer))
@@ -165,9 +172,13 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         written += store.add_quads(lists.index_quads(node))
         del lists  # the cells: the largest part of this function's memory
         written += store.add_quads(ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values))
-    else:  # a remote store: blank nodes cannot be named across requests, so the store copies them
+    else:  # a remote store: blank nodes cannot be written as they are, so the store copies them
         before = store.count(node.value)
-        store.update(_blank_updates(rules, target(graph), node.value))
+        positions = _named_positions(lists, node, named) if named else None
+        store.update(_blank_updates(rules, target(graph), node.value, capabilities.join_order_prologue,
+                                    positions=positions is None))
+        for piece in positions or ():
+            store.update(piece)
         written += store.count(node.value) - before
     return DerivedLayer(layer, (mapped or 0) + written, steps)
 
@@ -207,13 +218,54 @@ def _write_text(store: Store, graph: str, lines: Iterable[str], piece: int = TEX
     return count
 
 
-def _blank_updates(rules: DeriveRules, source: str, layer: str) -> str:
+#: triples of the list positions an ``INSERT DATA`` request holds (:func:`_named_positions`):
+#: Virtuoso 7.2's SPARQL compiler refuses one of more than about 4,990 ("SP030 ... memory exhausted")
+NAMED_PIECE = 2000
+
+
+def _named_positions(lists: Lists, layer: ox.NamedNode, prefix: str, piece: int = NAMED_PIECE) -> list[str] | None:
+    """``sga:index`` on every cell of ``lists``, counted as the embedded store counts them
+    (:meth:`Lists.index_quads`), as ``INSERT DATA`` requests of ``piece`` triples each, every cell
+    written as the IRI its label in the store's answers is (a store whose labels beginning with
+    ``prefix`` name its nodes: :attr:`~stepnc_graph.store.contract.Capabilities.blank_node_iri_prefix`);
+    None if a cell's label is not of that form (the store then counts the positions itself).
+
+    Linear in the cells: the store's own count (:func:`_blank_updates`) pairs every cell with
+    each one before it, ``rdf:rest*`` twice; a generated 20k-instance program's workplan of 370
+    steps took Virtuoso 7.2 0.6-0.9 server CPU-s that way, and four times that at twice the length."""
+    lines: list[str] = []
+    for quad in lists.index_quads(layer):
+        label = store_label(quad.subject)
+        if label is None or not label.startswith(prefix):
+            return None
+        try:
+            cell = ox.NamedNode(label)
+        except ValueError:
+            return None
+        lines.append(f"{cell} {quad.predicate} {quad.object} .")
+    return [f"INSERT DATA {{ GRAPH {layer} {{\n" + "\n".join(lines[start:start + piece]) + "\n} }"
+            for start in range(0, len(lines), piece)]
+
+
+def _blank_updates(rules: DeriveRules, source: str, layer: str, prologue: str = "", positions: bool = True) -> str:
     """The blank-node part of the layer as SPARQL Update, for a remote store: generic values that
-    are lists or typed values, and ``sga:index`` on the cells of the process lists."""
+    are lists or typed values, and (unless not ``positions``) ``sga:index`` on the cells of the
+    process lists.
+
+    Each operation's pattern starts with its ``VALUES`` block (the rules: a few hundred
+    properties), so a store joining as written looks each property up; ``prologue`` (the store's
+    :attr:`~stepnc_graph.store.contract.Capabilities.join_order_prologue`) opens each operation.
+    Virtuoso 7.2 otherwise joined the block last on some data, by a nested loop over every quad
+    of the graph: 4.3-7.8 server CPU-s for a 10k-instance program's 1,243 blank values, most of
+    a replacement, where joined as written they took 0.05-0.09."""
     where = rules.blank_values.split("WHERE", 1)[1].strip()[1:-1]
     index = ox.NamedNode(ANALYSIS_NS + "index")
-    return (f"INSERT {{ GRAPH <{layer}> {{ ?s ?q ?o }} }} WHERE {{ GRAPH <{source}> {{ {where} }} }} ;\n"
-            f"INSERT {{ GRAPH <{layer}> {{ ?cell {index} ?n }} }} WHERE {{ {{ SELECT ?cell (COUNT(DISTINCT ?mid) AS ?n) "
+    opens = f"{prologue}\n" if prologue else ""
+    values = f"{opens}INSERT {{ GRAPH <{layer}> {{ ?s ?q ?o }} }} WHERE {{ GRAPH <{source}> {{ {where} }} }}"
+    if not positions:
+        return values
+    return (f"{values} ;\n"
+            f"{opens}INSERT {{ GRAPH <{layer}> {{ ?cell {index} ?n }} }} WHERE {{ {{ SELECT ?cell (COUNT(DISTINCT ?mid) AS ?n) "
             f"WHERE {{ GRAPH <{source}> {{ VALUES ?p {{ {values_clause(rules.list_properties)} }} ?s ?p ?head . "
             f"?head <{RDF_NS}rest>* ?mid . ?mid <{RDF_NS}rest>* ?cell . ?cell <{RDF_NS}first> ?x }} }} "
             f"GROUP BY ?cell }} }}")

@@ -118,6 +118,18 @@ _LABEL_UNSAFE = re.compile(r"[^A-Za-z0-9_]")
 _VIRTUOSO_ASK = "__ASK_RETVAL"
 
 
+def store_label(node: Any) -> str | None:
+    """The label a store wrote for a blank node read from its answers, where
+    :func:`lenient_json_results` rewrote it (``x`` and its UTF-8 bytes in hex); None otherwise."""
+    value = getattr(node, "value", "")
+    if not isinstance(node, ox.BlankNode) or not value.startswith("x"):
+        return None
+    try:
+        return bytes.fromhex(value[1:]).decode("utf-8")
+    except ValueError:
+        return None
+
+
 def lenient_json_results(content: bytes, boolean: bool) -> bytes:
     """SPARQL JSON results as Oxigraph's strict parser takes them, where the results format is
     lenient or a known store answers otherwise (the document is rewritten only then).

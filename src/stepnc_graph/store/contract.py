@@ -35,6 +35,11 @@ class Capabilities:
     they reach it (an ordered sub-SELECT's order): SPARQL 1.1 (section 18.5.1.7) leaves that order
     to the store; Oxigraph keeps it, Virtuoso 7 does not, so a query result whose lists differ
     is named to the user (:func:`stepnc_graph.querying.query.run`), not passed on silently.
+    ``plans_joins``: the store finds a good join order for a request by itself; one that does not
+    (Virtuoso 7 on some data) gets the operations that join a ``VALUES`` block with a graph written
+    block first, after ``join_order_prologue``, its own words for "join in the order written".
+    ``blank_node_iri_prefix``: a blank node's label in the store's answers that begins so, written
+    as an IRI, names that node in a later request (Virtuoso: ``nodeID://``); '' for none.
     """
 
     persistent: bool
@@ -42,6 +47,9 @@ class Capabilities:
     local_reads: bool
     compactable: bool
     ordered_group_concat: bool = True
+    plans_joins: bool = True
+    join_order_prologue: str = ""
+    blank_node_iri_prefix: str = ""
 
 
 @dataclass(frozen=True)

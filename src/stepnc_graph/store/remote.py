@@ -57,7 +57,7 @@ import pyoxigraph as ox
 from stepnc_graph.store.bindings import bind_in_groups
 from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
 from stepnc_graph.store import StoreError
-from stepnc_graph.store.behaviour import lacks
+from stepnc_graph.store.behaviour import blank_node_iri_prefix, join_order_prologue, lacks
 from stepnc_graph.store.contract import Capabilities, Chunk
 from stepnc_graph.store.answers import (
     RemoteError,
@@ -420,7 +420,10 @@ class RemoteStore:
         keeps the order of its values is known once it has answered (by its ``Server`` header, from
         the table of :mod:`stepnc_graph.store.behaviour`)."""
         return Capabilities(persistent=True, blank_node_writes=False, local_reads=False, compactable=False,
-                            ordered_group_concat=not lacks(self.server, "ordered_group_concat"))
+                            ordered_group_concat=not lacks(self.server, "ordered_group_concat"),
+                            plans_joins=not lacks(self.server, "plans_joins"),
+                            join_order_prologue=join_order_prologue(self.server),
+                            blank_node_iri_prefix=blank_node_iri_prefix(self.server))
 
     @property
     def server(self) -> str | None:
