@@ -79,13 +79,7 @@ def parse_params(r: Part21Reader, pos: int, p21_id: int | None) -> tuple[list[An
                     finished, finished_typed = current, typed
                     if not stack:
                         return finished, pos
-                    current, typed = stack.pop()
-                    if finished_typed is not None:
-                        if len(finished) != 1:
-                            raise _Failure(f"typed parameter {finished_typed} needs exactly one value", pos - 1)
-                        current.append(Typed(finished_typed, finished[0]))
-                    else:
-                        current.append(finished)
+                    current, typed = _closed(finished, finished_typed, stack, pos - 1)
                     expect_value = False
                     continue
             if pos >= unclosed and text.startswith("/*", pos):
@@ -156,19 +150,27 @@ def parse_params(r: Part21Reader, pos: int, p21_id: int | None) -> tuple[list[An
                     finished, finished_typed = current, typed
                     if not stack:
                         return finished, pos
-                    current, typed = stack.pop()
-                    if finished_typed is not None:
-                        if len(finished) != 1:
-                            raise _Failure(f"typed parameter {finished_typed} needs exactly one value", start)
-                        current.append(Typed(finished_typed, finished[0]))
-                    else:
-                        current.append(finished)
+                    current, typed = _closed(finished, finished_typed, stack, start)
                 else:
                     raise bad_token(kind or "bad", tok, start, (",", ")"))
     except ValueError:  # int() refuses an integer longer than sys.get_int_max_str_digits()
         if kind not in ("int", "ref"):  # pragma: no cover - nothing else raises ValueError here
             raise
         raise _too_long(tok, start, "a reference" if kind == "ref" else "an integer") from None
+
+
+def _closed(finished: list[Any], finished_typed: str | None, stack: list[tuple[list[Any], str | None]],
+            at: int) -> tuple[list[Any], str | None]:
+    """The list around the one just closed (``finished``, or the typed parameter it is the
+    argument of) with it appended, and that list's own type: what the parse goes on with."""
+    current, typed = stack.pop()
+    if finished_typed is not None:
+        if len(finished) != 1:
+            raise _Failure(f"typed parameter {finished_typed} needs exactly one value", at)
+        current.append(Typed(finished_typed, finished[0]))
+    else:
+        current.append(finished)
+    return current, typed
 
 
 def runaway_failure(r: Part21Reader, opened: int, curly: int, swallowed: int) -> _Failure:
