@@ -16,7 +16,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -520,6 +520,25 @@ def test_killing_the_server_before_a_replacements_update_keeps_the_old_graph(
         assert listed_graphs(store) == [graph]
 
 
+def _server_cpu(store: Any, server: VirtuosoServer, counted: Callable[[bytes], bool]) -> list[float]:
+    """The server CPU seconds of each request ``store`` sends from now on whose body ``counted``
+    picks, read from the server process around the request (appended as they end)."""
+    spent: list[float] = []
+    request = store._request
+
+    def timed(method: str, url: str, **kwargs: Any) -> Any:
+        data = kwargs.get("data")
+        before = server.cpu()
+        try:
+            return request(method, url, **kwargs)
+        finally:
+            if isinstance(data, bytes) and counted(data):
+                spent.append(server.cpu() - before)
+
+    store._request = timed
+    return spent
+
+
 def test_the_derived_layers_blank_values_cost_a_replacement_little(tmp_path: Path) -> None:
     """Virtuoso 7.2 joined the rules' VALUES block of the derived layer's blank values last once it
     had held the program (a replacement, a load after an unload), by a nested loop over every quad
@@ -534,20 +553,8 @@ def test_the_derived_layers_blank_values_cost_a_replacement_little(tmp_path: Pat
     live = start("virtuoso", tmp_path / "server")
     try:
         assert isinstance(live.server, VirtuosoServer)
-        server, spent = live.server, []
         with live.open() as store:
-            request = store._request
-
-            def timed(method: str, url: str, **kwargs: Any) -> Any:
-                data = kwargs.get("data")
-                before = server.cpu()
-                try:
-                    return request(method, url, **kwargs)
-                finally:
-                    if isinstance(data, bytes) and b"FILTER(isBlank(?o))" in data:
-                        spent.append(server.cpu() - before)
-
-            store._request = timed  # type: ignore[method-assign]
+            spent = _server_cpu(store, live.server, lambda data: b"FILTER(isBlank(?o))" in data)
             for replace in (False, True):
                 sg.load(store, [program], base_iri=DATA + program.name, replace=replace)
         assert len(spent) == 2 and max(spent) < 0.5, spent
@@ -569,20 +576,9 @@ def test_list_positions_cost_a_load_little_however_long_the_list(tmp_path: Path)
     live = start("virtuoso", tmp_path / "server")
     try:
         assert isinstance(live.server, VirtuosoServer)
-        server, spent = live.server, []
         with live.open() as store:
-            request = store._request
-
-            def timed(method: str, url: str, **kwargs: Any) -> Any:
-                data = kwargs.get("data")
-                before = server.cpu()
-                try:
-                    return request(method, url, **kwargs)
-                finally:
-                    if isinstance(data, bytes) and data.lstrip().startswith((b"INSERT", b"DEFINE")) and b"#index>" in data:
-                        spent.append(server.cpu() - before)
-
-            store._request = timed  # type: ignore[method-assign]
+            spent = _server_cpu(store, live.server, lambda data: data.lstrip().startswith((b"INSERT", b"DEFINE"))
+                                and b"#index>" in data)
             sg.load(store, [program], base_iri=DATA + program.name)
             longest = max(int(row[0].value) for row in store.query(
                 f"SELECT (MAX(?n) AS ?m) WHERE {{ GRAPH <{DATA + program.name}/derived> {{ ?c "
