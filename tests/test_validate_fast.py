@@ -10,12 +10,37 @@ import pyoxigraph as ox
 import pytest
 
 from stepnc_graph import api
-from stepnc_graph.validation import _validate_store, compile_shapes, shape_files, validate
+from stepnc_graph.validation import _validate_store, compile_shapes, shape_files, throwaway, validate
 
 ROOT = Path(__file__).resolve().parent.parent
 FIX = Path(__file__).parent / "fixtures"
 FIXTURES = [ROOT / "examples" / "shaft_two_setups.stp", ROOT / "examples" / "shaft_damaged.stp",
             *sorted((FIX / "p21").glob("*.stp")), *sorted((FIX / "validate").glob("*.stp"))]
+
+
+@pytest.fixture(autouse=True)
+def _leave_out_at_any_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    """These small programs take the way a large one does: the attributes no check reads left out."""
+    monkeypatch.setattr(throwaway, "HOLD_BYTES", 0)
+
+
+def test_a_small_program_is_loaded_whole(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Below ``HOLD_BYTES`` no time goes into working out what the checks read (it would cost
+    more than it saves); at or above it, it does."""
+    asked: list[int] = []
+    real = throwaway.properties_read
+
+    def counted(checks: list[object]) -> frozenset[str] | None:
+        asked.append(len(checks))
+        return real(checks)  # type: ignore[arg-type]
+
+    monkeypatch.setattr("stepnc_graph.validation.properties_read", counted)
+    monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size + 1)
+    small = validate([SHAFT], lenient=True)
+    assert asked == []
+    monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size)
+    held = validate([SHAFT], lenient=True)
+    assert len(asked) == 1 and [r.asdict() for r in held.results] == [r.asdict() for r in small.results]
 
 
 @pytest.mark.parametrize("program", FIXTURES, ids=lambda p: p.name)

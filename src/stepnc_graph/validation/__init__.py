@@ -37,6 +37,7 @@ from stepnc_graph.validation.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validation.shapes import RDF_FIRST, IllFormedShapes, ShapesError, UnsupportedShapes
 from stepnc_graph.validation.throwaway import (add_shapes_graph, properties_read, rdf_graph, reads_positions,
                                                throwaway_store)
+from stepnc_graph.validation import throwaway
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
     from stepnc_graph.loading.common import LoadResult
@@ -120,7 +121,8 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
 
     rdf = [p for p in paths if rdf_format(p, programs=iso_shapes) is not None and not p.is_dir()]
     programs = [p for p in paths if p not in rdf]
-    with throwaway_store(paths) as store:
+    size = throwaway.input_bytes(paths)
+    with throwaway_store(paths, size) as store:
         if needs_shapes:
             add_shapes_graph(store.oxigraph, shapes)
         # shapes read the program graph only; positions come from the load unless a check reads them
@@ -128,8 +130,9 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
             phase(f"loading {len(programs):,} file(s): {100 * position // max(total, 1)} %")
 
         read(0, 1)
-        # in memory, the attributes no check reads are left out (on disk, their lines are not held back)
-        reads = properties_read(checks) if store.path is None else None
+        # in memory, the attributes no check reads are left out of a large program (on disk, their
+        # lines are not held back; a small program is loaded whole: throwaway.HOLD_BYTES)
+        reads = properties_read(checks) if store.path is None and size >= throwaway.HOLD_BYTES else None
         loaded = load(store, programs, lenient=lenient, derived=False, positions=reads_positions(checks),
                       edition=edition, progress=read, stdin_graph=STDIN_GRAPH, reads=reads) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
