@@ -140,7 +140,8 @@ def test_library_queries_need_no_list_of_named_graphs(name: str, linked_store: G
     q = importlib.import_module("stepnc_graph.querying.query")  # the module: sg.query is the function
     own = sg.query(linked_store, name).serialize("json")
     listed = q.dataset
-    monkeypatch.setattr(q, "dataset", lambda store, graph, library=False: listed(store, graph))
+    monkeypatch.setattr(q, "dataset", lambda store, graph, library=False, vocabulary=False:
+                        listed(store, graph, vocabulary=vocabulary))
     assert sg.query(linked_store, name).serialize("json") == own
 
 
@@ -149,7 +150,47 @@ def test_the_library_gets_the_stores_own_named_graphs(store: GraphStore) -> None
 
     assert dataset(store, None, library=True) == {"use_default_graph_as_union": True}
     assert [g.value for g in dataset(store, None)["named_graphs"]] == listed_graphs(store)  # other queries: files only
-    assert dataset(store, SHAFT, library=True) == dataset(store, SHAFT)  # one program: its graph
+    # one program: its graph, and for the library the vocabulary graph too (GRAPH <vocabulary>: one
+    # look-up per path step there, not one in each of the default graph's three graphs)
+    assert [g.value for g in dataset(store, SHAFT)["named_graphs"]] == [SHAFT]
+    assert [g.value for g in dataset(store, SHAFT, library=True)["named_graphs"]] == [SHAFT, VOCABULARY_GRAPH]
+    assert dataset(store, SHAFT, library=True)["default_graph"] == dataset(store, SHAFT)["default_graph"]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_library_rows_with_graph_ignore_the_vocabulary_as_a_named_graph(name: str, linked_store: GraphStore,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """With --graph a library query's named graphs are the program's and the vocabulary's; a query
+    that does not name the vocabulary graph must give the rows it gives with the program's alone
+    (a GRAPH ?g of the library reaches files' graphs only)."""
+    query = resolve(name)
+    if f"<{VOCABULARY_GRAPH}>" in query.text:
+        pytest.skip(f"{name} reads the vocabulary graph by name")
+    q = importlib.import_module("stepnc_graph.querying.query")
+    own = sg.query(linked_store, name, graph=SHAFT).serialize("json")
+    listed = q.dataset
+    monkeypatch.setattr(q, "dataset", lambda store, graph, library=False, vocabulary=False:
+                        listed(store, graph, vocabulary=vocabulary))
+    assert sg.query(linked_store, name, graph=SHAFT).serialize("json") == own
+
+
+def test_instance_counts_of_one_program_are_its_rows_of_the_whole_store(linked_store: GraphStore) -> None:
+    """instance-counts reads superclasses in the vocabulary graph by name: with --graph (the
+    vocabulary a named graph of the dataset) it must give the program's rows of the whole store."""
+    whole = [r for r in sg.query(linked_store, "instance-counts").rows if r["program"] == SHAFT]
+    assert len(whole) > 20 and {"workingstep", "RoughingOperation"} <= {r["class"] for r in whole}
+    assert sg.query(linked_store, "instance-counts", graph=SHAFT).rows == whole
+
+
+def test_a_query_naming_the_vocabulary_graph_reaches_it(linked_store: GraphStore, tmp_path: Path) -> None:
+    """The library's instance-counts reads GRAPH <vocabulary>: the same text run as your own query
+    (whose named graphs are the files' otherwise) gives the library's rows, whole store and --graph."""
+    mine = tmp_path / "counts.rq"
+    mine.write_text(resolve("instance-counts").text)
+    assert not resolve(str(mine)).library
+    for graph in (None, SHAFT):
+        rows = sg.query(linked_store, str(mine), graph=graph).rows
+        assert rows and rows == sg.query(linked_store, "instance-counts", graph=graph).rows
 
 
 def test_user_queries_always_get_the_vocabulary(tmp_path: Path) -> None:

@@ -304,9 +304,15 @@ def _syntax_error(exc: SyntaxError, query: Query) -> QueryError:
     return QueryError(f"SPARQL syntax error: {message}", query.source, cause.line, cause.column, excerpt=excerpt)
 
 
-def dataset(store: Store, graph: str | None, library: bool = False) -> dict[str, Any]:
+def dataset(store: Store, graph: str | None, library: bool = False, vocabulary: bool = False) -> dict[str, Any]:
     """The query dataset: every graph as default graph and the graphs a user names (programs, link
     graphs) for GRAPH ?g, or one program's graph, its derived layer and the vocabulary.
+
+    The vocabulary graph is a named graph too for a query that names it (``vocabulary``:
+    ``GRAPH <.../iso14649> { ?c rdfs:subClassOf* ?super }``) and for every library query: with
+    ``graph``, the default graph is three graphs and each index look-up there is one per graph --
+    three per step of a path over the classes, each dearer the larger the store -- where inside
+    ``GRAPH <vocabulary>`` it is one (``instance-counts``).
 
     A ``library`` query over the whole store gets the store's own named graphs instead. Oxigraph evaluates a ``GRAPH ?g`` pattern over a
     list of named graphs one graph after the other -- a look-up per listed graph and row, so a
@@ -315,14 +321,17 @@ def dataset(store: Store, graph: str | None, library: bool = False) -> dict[str,
     holds a ``p21:id`` pattern (only files' graphs have one) or binds ``?g`` elsewhere first
     (tests/test_query.py runs every library query both ways).
     """
+    vocabulary_named = [VOCABULARY_GRAPH] if library or vocabulary else []
     if graph is None:
         if library:
             return {"use_default_graph_as_union": True}
-        return {"use_default_graph_as_union": True, "named_graphs": [ox.NamedNode(g) for g in listed_graphs(store)]}
+        return {"use_default_graph_as_union": True,
+                "named_graphs": [ox.NamedNode(g) for g in [*listed_graphs(store), *vocabulary_named]]}
     if graph not in program_graphs(store):
         raise QueryError(f"no loaded file with graph {graph}; `stepnc-graph info` lists them")
+    named = [graph, *vocabulary_named]
     return {"default_graph": [ox.NamedNode(g) for g in (graph, derived_graph_iri(graph), VOCABULARY_GRAPH)],
-            "named_graphs": [ox.NamedNode(graph)]}
+            "named_graphs": [ox.NamedNode(g) for g in named]}
 
 
 def _warnings(store: Store, graph: str | None, vocabulary: bool = True) -> list[str]:
@@ -429,7 +438,7 @@ def execute(store: Store, query: Query, params: Mapping[str, str] | None = None,
     if query.needs_vocabulary:
         vocabulary_for_queries(store)
     substitutions = bind(store, query, params or {})
-    options = dataset(store, graph, query.library)
+    options = dataset(store, graph, query.library, vocabulary=f"<{VOCABULARY_GRAPH}>" in query.text)
     try:
         result = store.query(query.text, prefixes=PREFIXES, substitutions=substitutions or None, **options)
     except SyntaxError as exc:
