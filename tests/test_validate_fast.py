@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Any
+
 import pyoxigraph as ox
 import pytest
 
@@ -27,20 +29,51 @@ def _leave_out_at_any_size(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_a_small_program_is_loaded_whole(monkeypatch: pytest.MonkeyPatch) -> None:
     """Below ``HOLD_BYTES`` no time goes into working out what the checks read (it would cost
     more than it saves); at or above it, it does."""
-    asked: list[int] = []
-    real = throwaway.properties_read
+    from stepnc_graph.loading import loader
 
-    def counted(checks: list[object]) -> frozenset[str] | None:
-        asked.append(len(checks))
-        return real(checks)  # type: ignore[arg-type]
+    asked: list[frozenset[str] | None] = []
+    real = loader.load_paths
 
-    monkeypatch.setattr("stepnc_graph.validation.properties_read", counted)
+    def recorded(*args: Any, **kwargs: Any) -> Any:
+        asked.append(kwargs["reads"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loader, "load_paths", recorded)
     monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size + 1)
     small = validate([SHAFT], lenient=True)
-    assert asked == []
     monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size)
     held = validate([SHAFT], lenient=True)
-    assert len(asked) == 1 and [r.asdict() for r in held.results] == [r.asdict() for r in small.results]
+    assert asked[0] is None and asked[1] is not None and f"{STEPNC}placement.name" not in asked[1]
+    assert [r.asdict() for r in held.results] == [r.asdict() for r in small.results]
+
+
+def test_what_the_shipped_checks_read_comes_from_the_build(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Working out what the checks read is some 50 ms of pattern matching over the shipped checks:
+    the build does it once and stores the answer beside them, so validating a program with the
+    shipped shapes does none of it; other shapes get it worked out here, once per process."""
+    from stepnc_graph.validation import compiled, reads
+
+    shipped = compile_shapes(shape_files())
+    stored = shipped.reads()
+    assert stored == (reads.properties_read(shipped.checks), reads.reads_positions(shipped.checks))
+    calls: list[str] = []
+
+    def refused(name: str) -> Any:
+        def call(checks: object) -> None:
+            calls.append(name)
+            raise AssertionError(f"{name} worked out again")
+        return call
+
+    monkeypatch.setattr(compiled, "properties_read", refused("properties_read"))
+    monkeypatch.setattr(compiled, "reads_positions", refused("reads_positions"))
+    compiled._compiled.cache_clear()  # as in a fresh process: the shipped file read again
+    try:
+        fresh = compile_shapes(shape_files())
+        assert fresh is not shipped and fresh.reads() == stored
+        assert validate([SHAFT], lenient=True).checks_run > 100
+    finally:
+        compiled._compiled.cache_clear()
+    assert calls == []
 
 
 @pytest.mark.parametrize("program", FIXTURES, ids=lambda p: p.name)
@@ -76,7 +109,7 @@ def test_the_throwaway_graph_leaves_out_the_attributes_no_check_reads() -> None:
     """The shipped checks that run on a clean program read neither placement names nor point
     coordinates: ``validate FILE``'s load leaves them (and the coordinates' list cells) out."""
     from stepnc_graph.loading.loader import load_paths
-    from stepnc_graph.validation.throwaway import properties_read
+    from stepnc_graph.validation.reads import properties_read
 
     shapes = compile_shapes(shape_files())
     reads = properties_read(list(shapes.checks))

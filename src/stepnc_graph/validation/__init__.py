@@ -35,8 +35,7 @@ from stepnc_graph.validation.runner import refuse_service, run
 from stepnc_graph.validation.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
 from stepnc_graph.validation.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validation.shapes import RDF_FIRST, IllFormedShapes, ShapesError, UnsupportedShapes
-from stepnc_graph.validation.throwaway import (add_shapes_graph, properties_read, rdf_graph, reads_positions,
-                                               throwaway_store)
+from stepnc_graph.validation.throwaway import add_shapes_graph, rdf_graph, throwaway_store
 from stepnc_graph.validation import throwaway
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
@@ -132,8 +131,9 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
         read(0, 1)
         # in memory, the attributes no check reads are left out of a large program (on disk, their
         # lines are not held back; a small program is loaded whole: throwaway.HOLD_BYTES)
-        reads = properties_read(checks) if store.path is None and size >= throwaway.HOLD_BYTES else None
-        loaded = load(store, programs, lenient=lenient, derived=False, positions=reads_positions(checks),
+        properties, positions = shapes.reads()  # worked out by the build for the shipped checks
+        reads = properties if store.path is None and size >= throwaway.HOLD_BYTES else None
+        loaded = load(store, programs, lenient=lenient, derived=False, positions=positions,
                       edition=edition, progress=read, stdin_graph=STDIN_GRAPH, reads=reads) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped
