@@ -237,6 +237,28 @@ def test_multi_typed_counts_answer_what_the_self_join_answered(extra: str, expec
     assert _multi_typed(store, g) is bool(ask) is expected
 
 
+def test_the_multi_typed_test_runs_beside_the_calling_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The two counts of the multi-typed test (0.05-0.1 s at 100k instances) run on the checks'
+    pool, beside the query of the classes present and the expanding of the checks on the calling
+    thread: the report is the same, and the calling thread never runs them."""
+    import threading
+
+    from stepnc_graph.validation import runner
+
+    before = validate([SHAFT], lenient=True)
+    real = runner._multi_typed
+    threads: list[threading.Thread] = []
+
+    def where(store: ox.Store, g: ox.NamedNode) -> bool:
+        threads.append(threading.current_thread())
+        return real(store, g)
+
+    monkeypatch.setattr(runner, "_multi_typed", where)
+    after = validate([SHAFT], lenient=True)
+    assert threads and threading.main_thread() not in threads
+    assert [r.asdict() for r in after.results] == [r.asdict() for r in before.results]
+
+
 # -- the scans of the text before the parse -------------------------------------------------------
 
 #: the patterns the scans replace, as the reference (a leading ``\b`` or ``(?:^|...)`` made them slow)
