@@ -219,6 +219,23 @@ def test_class_tests_name_only_the_classes_the_data_graph_holds() -> None:
     assert typed == "(false || ?v IN (<urn:i>))"  # an individual the support files type still counts
 
 
+@pytest.mark.parametrize("types", ["<urn:A>", "<urn:B>", "<urn:A> , <urn:B>", "<urn:Z>", "\"A\"", "[]", "<urn:Z> , <urn:B>"])
+def test_a_class_test_answers_what_the_join_with_the_classes_answered(types: str) -> None:
+    """The class test compares each of a node's types with the classes of the closure present
+    (``FILTER IN``): what joining the node's types with them (``VALUES``) answered, whatever the
+    node's types are (none in the closure, several, a literal or a blank node)."""
+    from stepnc_graph.validation.runner import Hierarchy, RunContext
+
+    store = ox.Store()
+    g = ox.NamedNode("urn:graph")
+    store.load(f"<urn:n> a {types} . <urn:m> a <urn:A> .".encode(), ox.RdfFormat.TURTLE, to_graph=g)
+    ctx = RunContext(Hierarchy({"<urn:C>": {"<urn:A>", "<urn:B>"}}, {}, []), {"<urn:A>", "<urn:B>", "<urn:Z>"}, False)
+    test = ctx.class_test("<urn:n>", "<urn:C>", 0)
+    joined = "EXISTS { <urn:n> a ?c . VALUES ?c { <urn:A> <urn:B> } }"
+    answers = [bool(store.query(f"ASK {{ FILTER({t}) }}", default_graph=g)) for t in (test, joined)]
+    assert answers[0] == answers[1] == any(c in types for c in ("<urn:A>", "<urn:B>"))
+
+
 @pytest.mark.parametrize("extra, expected", [
     ("", False),
     ("<urn:n> a <urn:A> , <urn:B> .", True),

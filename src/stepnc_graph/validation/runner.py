@@ -85,11 +85,13 @@ class RunContext:
     def class_test(self, v: str, cls: str, k: int) -> str:
         """``v`` is an instance of ``cls`` (SHACL 2.2.2's class membership): typed with a class of
         its closure that occurs in the data graph (a class no node has cannot type ``v``, and the
-        shorter VALUES is what the store joins every value node with), or an individual the support
-        files type."""
+        shorter list is what each of ``v``'s types is compared with), or an individual the support
+        files type. ``v``'s own types (one, mostly) filtered by the list, not the list joined with
+        them as ``VALUES``: the 128 checks of a replicated 100k-instance program, one thread,
+        2.09-2.50 -> 2.01-2.44 CPU-s (medians 2.35 -> 2.07)."""
         closure = self.hierarchy.closure(cls)
-        named = " ".join(sorted(c for c in closure & self.present if c.startswith("<")))
-        test = f"EXISTS {{ {v} a ?_c{k} . VALUES ?_c{k} {{ {named} }} }}" if named else "false"
+        named = ", ".join(sorted(c for c in closure & self.present if c.startswith("<")))
+        test = f"EXISTS {{ {v} a ?_c{k} . FILTER(?_c{k} IN ({named})) }}" if named else "false"
         individuals = self.hierarchy.typed(closure)
         return f"({test} || {v} IN ({', '.join(individuals)}))" if individuals else test
 
