@@ -65,9 +65,7 @@ _WORD_CHAR = re.compile(r"\w")
 #: FILE_SCHEMA names accepted besides the model's own schema names: NIST's
 #: merged schema, which holds exactly the schemas stepnc-graph ships.
 SCHEMA_ALIASES = {"COMBINED_SCHEMA"}
-#: lines per chunk of the program's text: small, so that what is left to insert when the parse
-#: ends (an in-memory load's last batch, see tuning.MEMORY_BATCH_CHARS) is small too
-CHUNK_LINES = 5000
+CHUNK_LINES = 20000
 #: derived-layer lines the mapper collects before they go to the store as one companion chunk
 #: (~10 MB of text: each chunk is one more bulk-load call, so not many, and not all kept to the end)
 DERIVED_CHUNK_LINES = 60000

@@ -19,7 +19,7 @@ BATCH_CHARS = 12_000_000
 DIRECT_CHARS = 8_000_000
 
 #: characters per bytes batch of an in-memory load (from a stream the loader holds the GIL) (docs/loading.md)
-MEMORY_BATCH_CHARS = 1_000_000
+MEMORY_BATCH_CHARS = 4_000_000
 
 #: µs of CPU a quad to delete it, and to copy it into a rebuilt database: they choose how a graph is removed (docs/loading.md)
 DELETE_COST, REBUILD_COST = 11.0, 10.0
