@@ -26,9 +26,12 @@ def _leave_out_at_any_size(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(throwaway, "HOLD_BYTES", 0)
 
 
-def test_a_small_program_is_loaded_whole(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Below ``HOLD_BYTES`` no time goes into working out what the checks read (it would cost
-    more than it saves); at or above it, it does."""
+def test_a_small_program_is_loaded_whole_while_what_the_checks_read_is_unknown(monkeypatch: pytest.MonkeyPatch,
+                                                                              tmp_path: Path) -> None:
+    """Below ``HOLD_BYTES`` no time goes into working out what the checks read (it would cost more
+    than it saves): shapes of one's own load a small program whole, and at or above it leave out
+    what no check reads. The shipped checks' answer comes from the build, so with them even a
+    small program leaves it out (cheaper at every size)."""
     from stepnc_graph.loading import loader
 
     asked: list[frozenset[str] | None] = []
@@ -40,11 +43,15 @@ def test_a_small_program_is_loaded_whole(monkeypatch: pytest.MonkeyPatch) -> Non
 
     monkeypatch.setattr(loader, "load_paths", recorded)
     monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size + 1)
-    small = validate([SHAFT], lenient=True)
+    shipped = validate([SHAFT], lenient=True)
+    own = [_own_shape(tmp_path)]
+    small = validate([SHAFT], lenient=True, extra_shapes=own)
     monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size)
-    held = validate([SHAFT], lenient=True)
-    assert asked[0] is None and asked[1] is not None and f"{STEPNC}placement.name" not in asked[1]
+    held = validate([SHAFT], lenient=True, extra_shapes=own)
+    assert asked[0] is not None and f"{STEPNC}placement.name" not in asked[0]
+    assert asked[1] is None and asked[2] is not None
     assert [r.asdict() for r in held.results] == [r.asdict() for r in small.results]
+    assert len(small.results) > len(shipped.results)
 
 
 def test_what_the_shipped_checks_read_comes_from_the_build(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -52,12 +52,14 @@ def add_shapes_graph(store: ox.Store, shapes: CompiledShapes) -> None:
 MEMORY_VALIDATION_BYTES = 16_000_000
 
 
-#: Input below this size is loaded whole: working out which attributes no check reads
-#: (:func:`.reads.properties_read`) takes some 60 ms of pattern matching over the shipped checks at each
-#: validation, more than leaving them out saves on a small program (in-process, medians of 5: the
-#: 89-instance example 141 ms against 79 loaded whole; a replicated real program of 1k instances,
-#: 61 KB, 192 against 161; of 10k, 605 KB, 1,080 against 1,060; of 100k, 6.3 MB, 35 % fewer
-#: triples to insert). Read as ``throwaway.HOLD_BYTES`` when validating, so a test may set it.
+#: Input below this size is loaded whole when what the checks read is not known yet (shapes of
+#: one's own): working it out (:func:`.reads.properties_read`) takes some 40-60 ms of pattern
+#: matching, more than leaving the attributes out saves on a small program (in-process, medians of
+#: 5: the 89-instance example 141 ms against 79 loaded whole; a replicated real program of 1k
+#: instances, 61 KB, 192 against 161; of 10k, 605 KB, 1,080 against 1,060). For the shipped checks
+#: the build worked it out, and leaving out is the cheaper way at every size (medians of 7, CPU:
+#: the example 36 ms against 35 loaded whole, 1k 101 against 116, 10k 757 against 847). Read as
+#: ``throwaway.HOLD_BYTES`` when validating, so a test may set it.
 HOLD_BYTES = 1_000_000
 
 
