@@ -92,11 +92,12 @@ import json, sys, time
 t0 = time.perf_counter(); c0 = time.process_time()
 from stepnc_graph.loading.loader import load_paths
 from stepnc_graph.validation import compile_shapes, shape_files, throwaway_store
-from stepnc_graph.validation.throwaway import HOLD_BYTES, input_bytes, properties_read
+from stepnc_graph.validation.throwaway import HOLD_BYTES, input_bytes
 with throwaway_store([sys.argv[1]]) as store:  # validate()'s load of a file: in memory, or on disk if large
-    held = store.path is None and input_bytes([sys.argv[1]]) >= HOLD_BYTES  # as validate() decides
-    reads = properties_read(compile_shapes(shape_files()).checks) if held else None
-    load_paths(store, [sys.argv[1]], lenient=True, derived=False, positions=False, reads=reads)
+    shapes = compile_shapes(shape_files())
+    held = store.path is None and (shapes.reads_known or input_bytes([sys.argv[1]]) >= HOLD_BYTES)  # as validate()
+    load_paths(store, [sys.argv[1]], lenient=True, derived=False, positions=shapes.reads_positions(),
+               reads=shapes.properties_read() if held else None)
     print(json.dumps({"load_s": time.perf_counter() - t0, "load_cpu": time.process_time() - c0}))
 """
 

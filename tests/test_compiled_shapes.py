@@ -43,7 +43,7 @@ def shapes_copy(tmp_path: Path) -> Path:
 def test_shipped_checks_equal_a_fresh_compile() -> None:
     files = shape_files()
     named = _named(files, SHAPES)
-    shipped, hierarchy = loads((SHAPES / CACHE_FILE).read_text(encoding="utf-8"),
+    shipped, hierarchy, _reads = loads((SHAPES / CACHE_FILE).read_text(encoding="utf-8"),
                                digest([(n, t.encode("utf-8")) for n, t in named]))
     graph, fresh = compile_texts(named, frozenset(i for i, (n, _) in enumerate(named) if n == SUPPORT_FILE))
     assert len(shipped) > 1000

@@ -381,7 +381,7 @@ def test_the_shipped_checks_leave_the_position_triples_out() -> None:
     """No shipped check reads p21:id/p21:line or any predicate: validate FILE loads without them (a
     sixth fewer triples). A SELECT's projection of three variables is no triple pattern."""
     from stepnc_graph.validation import compile_shapes
-    from stepnc_graph.validation.throwaway import reads_positions
+    from stepnc_graph.validation.reads import reads_positions
 
     assert not reads_positions(compile_shapes(shape_files()).checks)
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Any
+
 import pyoxigraph as ox
 import pytest
 
@@ -24,23 +26,61 @@ def _leave_out_at_any_size(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(throwaway, "HOLD_BYTES", 0)
 
 
-def test_a_small_program_is_loaded_whole(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Below ``HOLD_BYTES`` no time goes into working out what the checks read (it would cost
-    more than it saves); at or above it, it does."""
-    asked: list[int] = []
-    real = throwaway.properties_read
+def test_a_small_program_is_loaded_whole_while_what_the_checks_read_is_unknown(monkeypatch: pytest.MonkeyPatch,
+                                                                              tmp_path: Path) -> None:
+    """Below ``HOLD_BYTES`` no time goes into working out what the checks read (it would cost more
+    than it saves): shapes of one's own load a small program whole, and at or above it leave out
+    what no check reads. The shipped checks' answer comes from the build, so with them even a
+    small program leaves it out (cheaper at every size)."""
+    from stepnc_graph.loading import loader
 
-    def counted(checks: list[object]) -> frozenset[str] | None:
-        asked.append(len(checks))
-        return real(checks)  # type: ignore[arg-type]
+    asked: list[frozenset[str] | None] = []
+    real = loader.load_paths
 
-    monkeypatch.setattr("stepnc_graph.validation.properties_read", counted)
+    def recorded(*args: Any, **kwargs: Any) -> Any:
+        asked.append(kwargs["reads"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loader, "load_paths", recorded)
     monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size + 1)
-    small = validate([SHAFT], lenient=True)
-    assert asked == []
+    shipped = validate([SHAFT], lenient=True)
+    own = [_own_shape(tmp_path)]
+    small = validate([SHAFT], lenient=True, extra_shapes=own)
     monkeypatch.setattr(throwaway, "HOLD_BYTES", SHAFT.stat().st_size)
-    held = validate([SHAFT], lenient=True)
-    assert len(asked) == 1 and [r.asdict() for r in held.results] == [r.asdict() for r in small.results]
+    held = validate([SHAFT], lenient=True, extra_shapes=own)
+    assert asked[0] is not None and f"{STEPNC}placement.name" not in asked[0]
+    assert asked[1] is None and asked[2] is not None
+    assert [r.asdict() for r in held.results] == [r.asdict() for r in small.results]
+    assert len(small.results) > len(shipped.results)
+
+
+def test_what_the_shipped_checks_read_comes_from_the_build(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Working out what the checks read is some 50 ms of pattern matching over the shipped checks:
+    the build does it once and stores the answer beside them, so validating a program with the
+    shipped shapes does none of it; other shapes get it worked out here, once per process."""
+    from stepnc_graph.validation import compiled, reads
+
+    shipped = compile_shapes(shape_files())
+    stored = shipped.reads()
+    assert stored == (reads.properties_read(shipped.checks), reads.reads_positions(shipped.checks))
+    calls: list[str] = []
+
+    def refused(name: str) -> Any:
+        def call(checks: object) -> None:
+            calls.append(name)
+            raise AssertionError(f"{name} worked out again")
+        return call
+
+    monkeypatch.setattr(compiled, "properties_read", refused("properties_read"))
+    monkeypatch.setattr(compiled, "reads_positions", refused("reads_positions"))
+    compiled._compiled.cache_clear()  # as in a fresh process: the shipped file read again
+    try:
+        fresh = compile_shapes(shape_files())
+        assert fresh is not shipped and fresh.reads() == stored
+        assert validate([SHAFT], lenient=True).checks_run > 100
+    finally:
+        compiled._compiled.cache_clear()
+    assert calls == []
 
 
 @pytest.mark.parametrize("program", FIXTURES, ids=lambda p: p.name)
@@ -76,7 +116,7 @@ def test_the_throwaway_graph_leaves_out_the_attributes_no_check_reads() -> None:
     """The shipped checks that run on a clean program read neither placement names nor point
     coordinates: ``validate FILE``'s load leaves them (and the coordinates' list cells) out."""
     from stepnc_graph.loading.loader import load_paths
-    from stepnc_graph.validation.throwaway import properties_read
+    from stepnc_graph.validation.reads import properties_read
 
     shapes = compile_shapes(shape_files())
     reads = properties_read(list(shapes.checks))
@@ -186,6 +226,23 @@ def test_class_tests_name_only_the_classes_the_data_graph_holds() -> None:
     assert typed == "(false || ?v IN (<urn:i>))"  # an individual the support files type still counts
 
 
+@pytest.mark.parametrize("types", ["<urn:A>", "<urn:B>", "<urn:A> , <urn:B>", "<urn:Z>", "\"A\"", "[]", "<urn:Z> , <urn:B>"])
+def test_a_class_test_answers_what_the_join_with_the_classes_answered(types: str) -> None:
+    """The class test compares each of a node's types with the classes of the closure present
+    (``FILTER IN``): what joining the node's types with them (``VALUES``) answered, whatever the
+    node's types are (none in the closure, several, a literal or a blank node)."""
+    from stepnc_graph.validation.runner import Hierarchy, RunContext
+
+    store = ox.Store()
+    g = ox.NamedNode("urn:graph")
+    store.load(f"<urn:n> a {types} . <urn:m> a <urn:A> .".encode(), ox.RdfFormat.TURTLE, to_graph=g)
+    ctx = RunContext(Hierarchy({"<urn:C>": {"<urn:A>", "<urn:B>"}}, {}, []), {"<urn:A>", "<urn:B>", "<urn:Z>"}, False)
+    test = ctx.class_test("<urn:n>", "<urn:C>", 0)
+    joined = "EXISTS { <urn:n> a ?c . VALUES ?c { <urn:A> <urn:B> } }"
+    answers = [bool(store.query(f"ASK {{ FILTER({t}) }}", default_graph=g)) for t in (test, joined)]
+    assert answers[0] == answers[1] == any(c in types for c in ("<urn:A>", "<urn:B>"))
+
+
 @pytest.mark.parametrize("extra, expected", [
     ("", False),
     ("<urn:n> a <urn:A> , <urn:B> .", True),
@@ -202,6 +259,28 @@ def test_multi_typed_counts_answer_what_the_self_join_answered(extra: str, expec
     ask = store.query("ASK { ?s a ?t1 , ?t2 FILTER(!sameTerm(?t1, ?t2)) FILTER NOT EXISTS "
                       "{ ?s a <https://w3id.org/stepnc-graph/p21#ExchangeStructure> } }", default_graph=g)
     assert _multi_typed(store, g) is bool(ask) is expected
+
+
+def test_the_multi_typed_test_runs_beside_the_calling_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The two counts of the multi-typed test (0.05-0.1 s at 100k instances) run on the checks'
+    pool, beside the query of the classes present and the expanding of the checks on the calling
+    thread: the report is the same, and the calling thread never runs them."""
+    import threading
+
+    from stepnc_graph.validation import runner
+
+    before = validate([SHAFT], lenient=True)
+    real = runner._multi_typed
+    threads: list[threading.Thread] = []
+
+    def where(store: ox.Store, g: ox.NamedNode) -> bool:
+        threads.append(threading.current_thread())
+        return real(store, g)
+
+    monkeypatch.setattr(runner, "_multi_typed", where)
+    after = validate([SHAFT], lenient=True)
+    assert threads and threading.main_thread() not in threads
+    assert [r.asdict() for r in after.results] == [r.asdict() for r in before.results]
 
 
 # -- the scans of the text before the parse -------------------------------------------------------

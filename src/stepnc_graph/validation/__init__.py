@@ -35,8 +35,7 @@ from stepnc_graph.validation.runner import refuse_service, run
 from stepnc_graph.validation.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
 from stepnc_graph.validation.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validation.shapes import RDF_FIRST, IllFormedShapes, ShapesError, UnsupportedShapes
-from stepnc_graph.validation.throwaway import (add_shapes_graph, properties_read, rdf_graph, reads_positions,
-                                               throwaway_store)
+from stepnc_graph.validation.throwaway import add_shapes_graph, rdf_graph, throwaway_store
 from stepnc_graph.validation import throwaway
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
@@ -130,10 +129,12 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
             phase(f"loading {len(programs):,} file(s): {100 * position // max(total, 1)} %")
 
         read(0, 1)
-        # in memory, the attributes no check reads are left out of a large program (on disk, their
-        # lines are not held back; a small program is loaded whole: throwaway.HOLD_BYTES)
-        reads = properties_read(checks) if store.path is None and size >= throwaway.HOLD_BYTES else None
-        loaded = load(store, programs, lenient=lenient, derived=False, positions=reads_positions(checks),
+        # in memory, the attributes no check reads are left out (on disk, their lines are not held
+        # back); a small program is loaded whole unless what the checks read costs nothing to know
+        # (the shipped checks: the build worked it out), see throwaway.HOLD_BYTES
+        held = store.path is None and (shapes.reads_known or size >= throwaway.HOLD_BYTES)
+        reads = shapes.properties_read() if held else None
+        loaded = load(store, programs, lenient=lenient, derived=False, positions=shapes.reads_positions(),
                       edition=edition, progress=read, stdin_graph=STDIN_GRAPH, reads=reads) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}
         # graphs this call's Part 21 mapping wrote, where the checks it guarantees are skipped

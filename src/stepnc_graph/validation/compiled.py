@@ -28,17 +28,20 @@ from typing import Any
 from stepnc_graph.core.errors import StepncGraphWarning
 from stepnc_graph.core.resources import sources_digest
 from stepnc_graph.validation.engine import Check, Compiler
+from stepnc_graph.validation.reads import properties_read, reads_positions
 from stepnc_graph.validation.shapes import ShapesError, ShapesGraph
 
-FORMAT = 5  # 2: each check names the files that describe its results; 3: its argument and what implies it;
+FORMAT = 6  # 2: each check names the files that describe its results; 3: its argument and what implies it;
 # 4: "excludes" null for a check that always runs (was a flag "multi_typed_only" beside it);
 # 5: queries with placeholders for the data's hierarchy, the support files' hierarchy beside the checks,
-# each check's target classes and component arguments
+# each check's target classes and component arguments; 6: what the checks read (:mod:`.reads`)
 CACHE_FILE = "compiled-checks.json"
 #: the shipped file whose triples are part of the data graph (class hierarchy, enumeration items' types)
 SUPPORT_FILE = "support.ttl"
 
 Hierarchy = tuple[dict[str, set[str]], dict[str, set[str]]]
+#: what the checks may read (:mod:`.reads`): the properties (None: any), and whether the position triples
+Reads = tuple[frozenset[str] | None, bool]
 
 
 class CompiledShapesWarning(StepncGraphWarning):
@@ -110,7 +113,8 @@ def _decode(d: dict[str, Any], sets: list[frozenset[str]]) -> Check:
 
 
 def dumps(names: Sequence[str], value: str, checks: Sequence[Check], hierarchy: Hierarchy) -> str:
-    """The compiled-checks file: byte-stable (one check per line, keys sorted) for ``build --check``."""
+    """The compiled-checks file: byte-stable (one check per line, keys sorted) for ``build --check``.
+    What the checks read is worked out here, once, for ``validate FILE`` (:mod:`.reads`)."""
     sets = _ClassSets()
     lines = [json.dumps(_encode(c, sets), sort_keys=True, ensure_ascii=False) for c in checks]
     head = json.dumps({"format": FORMAT, "files": list(names), "shapes_sha256": value}, sort_keys=True)
@@ -118,13 +122,17 @@ def dumps(names: Sequence[str], value: str, checks: Sequence[Check], hierarchy: 
     subclasses, individuals = hierarchy
     tree = json.dumps({k: sorted(v) for k, v in sorted(subclasses.items())}, ensure_ascii=False)
     typed = json.dumps({k: sorted(v) for k, v in sorted(individuals.items())}, ensure_ascii=False)
-    return ("{\"header\": " + head + ",\n\"subclasses\": " + tree + ",\n\"individuals\": " + typed
+    read = properties_read(checks)
+    reads = json.dumps({"positions": reads_positions(checks), "properties": None if read is None else sorted(read)},
+                       sort_keys=True, ensure_ascii=False)
+    return ("{\"header\": " + head + ",\n\"reads\": " + reads + ",\n\"subclasses\": " + tree
+            + ",\n\"individuals\": " + typed
             + ",\n\"class_sets\": [\n" + table + "\n],\n\"checks\": [\n" + ",\n".join(lines) + "\n]}\n")
 
 
-def loads(text: str, value: str) -> tuple[tuple[Check, ...], Hierarchy]:
-    """The checks of a compiled-checks file written for shape files of digest ``value``, and the
-    support files' hierarchy."""
+def loads(text: str, value: str) -> tuple[tuple[Check, ...], Hierarchy, Reads]:
+    """The checks of a compiled-checks file written for shape files of digest ``value``, the
+    support files' hierarchy and what the checks read."""
     try:
         data = json.loads(text)
         header = data["header"]
@@ -135,7 +143,9 @@ def loads(text: str, value: str) -> tuple[tuple[Check, ...], Hierarchy]:
         sets = [frozenset(c) for c in data["class_sets"]]
         hierarchy = ({k: set(v) for k, v in data["subclasses"].items()},
                      {k: set(v) for k, v in data["individuals"].items()})
-        return tuple(_decode(d, sets) for d in data["checks"]), hierarchy
+        read = data["reads"]["properties"]
+        reads = (None if read is None else frozenset(read), bool(data["reads"]["positions"]))
+        return tuple(_decode(d, sets) for d in data["checks"]), hierarchy, reads
     except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
         raise StaleChecks(f"it does not decode ({type(exc).__name__}: {exc})") from exc
 
@@ -163,17 +173,24 @@ def shape_files(shapes_dir: Path | None = None, process: bool = True) -> list[Pa
     return files
 
 
+#: what :meth:`CompiledShapes.properties_read` holds before it is worked out
+_UNKNOWN = object()
+
+
 class CompiledShapes:
     """The checks of a set of shape files, and their shapes graph, read on first use and only as far
     as needed: describing a result reads the files its check names (:attr:`Check.files`); finding
     none reads no file at all. ``hierarchy``: the data files' subclasses and typed individuals
-    (class -> nodes), which the checks' class tests expand to."""
+    (class -> nodes), which the checks' class tests expand to. ``reads``: what the checks read,
+    when the build worked it out (else worked out on first use: :meth:`reads`)."""
 
     def __init__(self, files: Sequence[Path], checks: tuple[Check, ...], graph: ShapesGraph | None = None,
                  hierarchy: tuple[dict[str, set[str]], dict[str, set[str]]] | None = None,
-                 data_positions: frozenset[int] = frozenset()) -> None:
+                 data_positions: frozenset[int] = frozenset(), reads: Reads | None = None) -> None:
         self.files = tuple(files)
         self.checks = checks
+        self._properties: frozenset[str] | None | object = _UNKNOWN if reads is None else reads[0]
+        self._positions: bool | None = None if reads is None else reads[1]
         self._graph = graph  # every file, when the shapes were compiled here
         self._partial = ShapesGraph()
         self._read: set[int] = set()
@@ -182,6 +199,29 @@ class CompiledShapes:
             hierarchy = ({k: set(v) for k, v in graph.subclasses.items()},
                          {k: {i for i in v if i.startswith("<")} for k, v in graph.instances.items()})
         self.hierarchy = hierarchy or ({}, {})
+
+    def reads(self) -> Reads:
+        """The properties the checks may read (None: any) and whether they read the position
+        triples (:mod:`.reads`): from the build for the shipped checks, else worked out once."""
+        return self.properties_read(), self.reads_positions()
+
+    def properties_read(self) -> frozenset[str] | None:
+        """The properties the checks may read (None: any): from the build, else worked out once
+        (some 40 ms of pattern matching over the shipped checks)."""
+        if not self.reads_known:
+            self._properties = properties_read(self.checks)
+        return self._properties  # type: ignore[return-value]
+
+    def reads_positions(self) -> bool:
+        """Whether the checks may read the position triples: from the build, else worked out once."""
+        if self._positions is None:
+            self._positions = reads_positions(self.checks)
+        return self._positions
+
+    @property
+    def reads_known(self) -> bool:
+        """Whether :meth:`properties_read` costs nothing: the build worked it out, or this process did."""
+        return self._properties is not _UNKNOWN
 
     @property
     def graph(self) -> ShapesGraph:
@@ -214,8 +254,8 @@ def _compiled(files: tuple[tuple[str, float], ...], directory: str) -> CompiledS
         shipped = Path(directory) / CACHE_FILE
         try:
             text = shipped.read_text(encoding="utf-8")
-            checks, hierarchy = loads(text, digest(list(zip(names, texts, strict=True))))
-            return CompiledShapes(paths, checks, hierarchy=hierarchy, data_positions=data)
+            checks, hierarchy, reads = loads(text, digest(list(zip(names, texts, strict=True))))
+            return CompiledShapes(paths, checks, hierarchy=hierarchy, data_positions=data, reads=reads)
         except (OSError, StaleChecks) as exc:
             if paths == shape_files(Path(directory)):  # the shipped set itself: say why it is not used
                 reason = exc.strerror if isinstance(exc, OSError) else str(exc)
