@@ -74,6 +74,7 @@ The rules come from :mod:`.derive_rules`, the walks over lists and the execution
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -149,7 +150,12 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     # labels name no node: one SPARQL Update, below), only the lists the order walks are read
     # (Virtuoso 7.2, 10k instances: every process list's cells took its server 0.2-0.4 CPU-s)
     walked = streamed or (not capabilities.blank_node_writes and not named)
-    lists = Lists.read(reader, ORDER_LISTS if walked else rules.list_properties)
+    lists = Lists.read(reader, ORDER_LISTS if walked or named else rules.list_properties)
+    # written by the labels of the store's answers: read from the store itself, where the reads
+    # above may come from the client's copy of the program (RemoteStore.own_labels), whose blank
+    # nodes are its own (the order walks them with the other reads)
+    with getattr(store, "own_labels", contextlib.nullcontext)():
+        labelled = Lists.read(reader, rules.list_properties) if named else lists
     order = ExecutionOrder(reader, rules, lists)
     steps = order.flatten()
     node = ox.NamedNode(target(layer))
@@ -174,7 +180,7 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         written += store.add_quads(ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values))
     else:  # a remote store: blank nodes cannot be written as they are, so the store copies them
         before = store.count(node.value)
-        positions = _named_positions(lists, node, named) if named else None
+        positions = _named_positions(labelled, node, named) if named else None
         store.update(_blank_updates(rules, target(graph), node.value, capabilities.join_order_prologue,
                                     positions=positions is None))
         for piece in positions or ():

@@ -49,6 +49,7 @@ import os
 import re
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -135,6 +136,9 @@ class RemoteStore:
         #: while a load is staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`): the in-memory
         #: store and the staging names it holds; every read or write naming one of them goes there
         self._local: tuple[Any, dict[str, str]] | None = None
+        #: while a load staged in the store runs its ``before_commit`` (:func:`~stepnc_graph.store.remote_load.replace_in_store`):
+        #: the client's in-memory copy of the program's staging graph and its name; reads naming it go there
+        self._copy: tuple[Any, str] | None = None
 
     def prepare_to_write(self) -> None:
         """Nothing to take: the endpoint orders concurrent updates itself."""
@@ -155,21 +159,34 @@ class RemoteStore:
         """One HTTP request and its answer's body (None when ``stream``): see :meth:`HttpClient.request`."""
         return self._http.request(method, url, idempotent=idempotent, stream=stream, **kwargs)
 
-    def _staged(self, graph: str | None = None, sparql: str = "", graphs: Iterable[Any] = ()) -> Any:
+    def _staged(self, graph: str | None = None, sparql: str = "", graphs: Iterable[Any] = (), write: bool = False) -> Any:
         """The in-memory store of a load staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`) when a
         request names one of its staging graphs -- as ``graph``, in ``sparql`` or among a query's
-        dataset ``graphs`` -- else None (the request goes to the server)."""
-        if self._local is None:
+        dataset ``graphs`` -- or, unless it would ``write``, the client's copy of a load staged in
+        the store (:attr:`_copy`) when it names that graph; else None (the request goes to the server)."""
+        if self._local is not None:
+            local, names = self._local[0], set(self._local[1].values())
+        elif self._copy is not None and not write:
+            local, names = self._copy[0], {self._copy[1]}
+        else:
             return None
-        local, staging = self._local
-        names = set(staging.values())
         if graph in names or any(_value(g) in names for g in graphs) or any(n in sparql for n in names):
             return local
         return None
 
+    @contextmanager
+    def own_labels(self) -> Iterator[None]:
+        """Reads in this block go to the server, not to the client's copy of a graph staged there
+        (:attr:`_copy`): for answers whose blank node labels must be the store's own."""
+        copy, self._copy = self._copy, None
+        try:
+            yield
+        finally:
+            self._copy = copy
+
     def update(self, sparql: str) -> None:
         """One SPARQL Update request (one transaction in the store)."""
-        if (local := self._staged(sparql=sparql)) is not None:
+        if (local := self._staged(sparql=sparql, write=True)) is not None:
             local.update(sparql)
             return
         self._request("POST", self.endpoint.update_url, idempotent=False, data=sparql.encode("utf-8"),
@@ -228,12 +245,13 @@ class RemoteStore:
     def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
         if (local := self._staged(graph)) is not None:
             local.add_ntriples(graph, text, bulk)
-            return
+            if self._local is not None:
+                return  # else the client's copy of a graph staged in the store: the store's graph too
         for _, body in _batches([text], BATCH_BYTES):
             self._post_graph(graph, body)
 
     def add_turtle(self, graph: str, text: str) -> None:
-        if (local := self._staged(graph)) is not None:
+        if (local := self._staged(graph, write=True)) is not None:
             local.add_turtle(graph, text)
             return
         self._post_graph(graph, text.encode("utf-8"), _TURTLE)
