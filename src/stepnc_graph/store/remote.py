@@ -49,6 +49,7 @@ import os
 import re
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -222,11 +223,18 @@ class RemoteStore:
                       headers={"Content-Type": _NQUADS})
 
     def _drop_quietly(self, graphs: Iterable[str]) -> None:
-        """Drop staging graphs; if the server is gone, a later load drops them once stale."""
-        try:
-            self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in graphs))
-        except RemoteError:
-            pass
+        """Drop staging graphs, each by a request of its own, side by side (nothing is swapped in
+        any more: they need no one transaction, and a store may drop them on several cores; Virtuoso
+        7.2, a replicated 10k program's two: 0.57-0.98 s wall where one request took 0.96-1.04); if
+        the server is gone, a later load drops them once stale."""
+        def drop(graph: str) -> None:
+            try:
+                self.update(f"DROP SILENT GRAPH <{graph}>")
+            except RemoteError:
+                pass
+
+        with ThreadPoolExecutor(max_workers=4, thread_name_prefix="stepnc-graph drop") as pool:
+            list(pool.map(drop, dict.fromkeys(graphs)))
 
     def _drop_stale_staging(self) -> None:
         """Drop the staging graphs an interrupted load left (named as :data:`_STAGING_NAME`, older
