@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import os
 import re
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -140,6 +141,7 @@ class RemoteStore:
         #: while a load staged in the store runs its ``before_commit`` (:func:`~stepnc_graph.store.remote_load.replace_in_store`):
         #: the client's in-memory copy of the program's staging graph and its name; reads naming it go there
         self._copy: tuple[Any, str] | None = None
+        self._own = threading.local()  # .labels: this thread's reads go to the server (own_labels)
 
     def prepare_to_write(self) -> None:
         """Nothing to take: the endpoint orders concurrent updates itself."""
@@ -167,7 +169,7 @@ class RemoteStore:
         the store (:attr:`_copy`) when it names that graph; else None (the request goes to the server)."""
         if self._local is not None:
             local, names = self._local[0], set(self._local[1].values())
-        elif self._copy is not None and not write:
+        elif self._copy is not None and not write and not getattr(self._own, "labels", False):
             local, names = self._copy[0], {self._copy[1]}
         else:
             return None
@@ -177,13 +179,14 @@ class RemoteStore:
 
     @contextmanager
     def own_labels(self) -> Iterator[None]:
-        """Reads in this block go to the server, not to the client's copy of a graph staged there
-        (:attr:`_copy`): for answers whose blank node labels must be the store's own."""
-        copy, self._copy = self._copy, None
+        """Reads in this block, on this thread, go to the server, not to the client's copy of a
+        graph staged there (:attr:`_copy`): for answers whose blank node labels must be the store's
+        own (other threads go on reading the copy meanwhile)."""
+        self._own.labels = True
         try:
             yield
         finally:
-            self._copy = copy
+            self._own.labels = False
 
     def update(self, sparql: str) -> None:
         """One SPARQL Update request (one transaction in the store)."""
