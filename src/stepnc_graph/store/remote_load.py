@@ -154,7 +154,7 @@ class _Uploader:
         self.store = store
         self.work: queue.Queue[tuple[str, bytes] | None] = queue.Queue(maxsize=2)
         self.error: BaseException | None = None
-        self.stop = threading.Event()
+        self.stop, self.done = threading.Event(), threading.Event()
         self.thread = threading.Thread(target=self._run, name="stepnc-graph upload", daemon=True)
 
     def __enter__(self) -> "_Uploader":
@@ -164,10 +164,21 @@ class _Uploader:
     def __exit__(self, kind: type[BaseException] | None, *rest: object) -> None:
         if kind is not None:
             self.stop.set()
-        self._put(None)
-        self.thread.join()
+        try:
+            self._finish()
+        except BaseException:  # interrupted while waiting (Ctrl-C): send nothing more, and wait for
+            self.stop.set()   # the request under way, so the caller's drop of the staging graphs
+            self._finish()    # comes after every POST into them
+            raise
         if kind is None and self.error is not None:
             raise self.error
+
+    def _finish(self) -> None:
+        """Wait until the thread sent what it was given (or skipped it, once stopped). Waited for on
+        an event the thread sets, not by ``join``: a ``join`` interrupted by Ctrl-C may leave the
+        thread marked as ended while it still sends (CPython 3.11)."""
+        self._put(None)
+        self.done.wait()
 
     def send(self, graph: str, body: bytes) -> None:
         """POST ``body`` into ``graph`` once those before it went."""
@@ -176,7 +187,7 @@ class _Uploader:
         self._put((graph, body))
 
     def _put(self, item: tuple[str, bytes] | None) -> None:
-        while self.thread.is_alive():
+        while not self.done.is_set():
             try:
                 self.work.put(item, timeout=0.1)
                 return
@@ -185,13 +196,16 @@ class _Uploader:
                     raise self.error from None
 
     def _run(self) -> None:
-        while (item := self.work.get()) is not None:
-            if self.stop.is_set() or self.error is not None:
-                continue
-            try:
-                self.store._post_graph(*item)
-            except BaseException as exc:  # noqa: BLE001 -- raised to the sender
-                self.error = exc
+        try:
+            while (item := self.work.get()) is not None:
+                if self.stop.is_set() or self.error is not None:
+                    continue
+                try:
+                    self.store._post_graph(*item)
+                except BaseException as exc:  # noqa: BLE001 -- raised to the sender
+                    self.error = exc
+        finally:
+            self.done.set()
 
 def _swap(store: "RemoteStore", staging: dict[str, str]) -> None:
     """Replace each graph by its staging graph: one request, so one transaction. ADD (a copy)
