@@ -74,7 +74,9 @@ The rules come from :mod:`.derive_rules`, the walks over lists and the execution
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -149,10 +151,48 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
     # labels name no node: one SPARQL Update, below), only the lists the order walks are read
     # (Virtuoso 7.2, 10k instances: every process list's cells took its server 0.2-0.4 CPU-s)
     walked = streamed or (not capabilities.blank_node_writes and not named)
-    lists = Lists.read(reader, ORDER_LISTS if walked else rules.list_properties)
+    node = ox.NamedNode(target(layer))
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="stepnc-graph cells") as pool:
+        # the positions are written by the labels of the store's answers: the cells are read from
+        # the store itself, on a thread, while the walks below may read the client's copy of the
+        # program (RemoteStore.own_labels), whose blank nodes are its own
+        labelled = pool.submit(_labelled_cells, store, reader, rules) if named else None
+        lists = Lists.read(reader, ORDER_LISTS if walked or named else rules.list_properties)
+        steps, written = _write_order(store, graph, node, rules, reader, lists, mapped)
+        cells = labelled.result() if labelled is not None else lists
+    if streamed:
+        written += blank_mapped or 0
+    elif store.capabilities.blank_node_writes:
+        # The quads that hold blank nodes go as quads (a blank node has no name SPARQL or a
+        # second text could give it), streamed: in one transaction when few, else in bulk calls
+        written += store.add_quads(lists.index_quads(node))
+        del lists, cells  # the cells: the largest part of this function's memory
+        written += store.add_quads(ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values))
+    else:  # a remote store: blank nodes cannot be written as they are, so the store copies them
+        before = store.count(node.value)
+        positions = _named_positions(cells, node, named) if named else None
+        store.update(_blank_updates(rules, target(graph), node.value, capabilities.join_order_prologue,
+                                    positions=positions is None))
+        for piece in positions or ():
+            store.update(piece)
+        written += store.count(node.value) - before
+    return DerivedLayer(layer, (mapped or 0) + written, steps)
+
+
+def _labelled_cells(store: Store, reader: Reader, rules: DeriveRules) -> Lists:
+    """The cells of the lists ``rules`` positions, read from ``store`` itself (see :func:`derive`)."""
+    with getattr(store, "own_labels", contextlib.nullcontext)():
+        return Lists.read(reader, rules.list_properties)
+
+
+def _write_order(store: Store, graph: str, node: ox.NamedNode, rules: DeriveRules, reader: Reader, lists: Lists,
+                 mapped: int | None) -> tuple[list[Step], int]:
+    """Write the layer's text into ``node`` (the execution order, the features', operations' and
+    instance counts' facts, and, where no mapper wrote them (``mapped`` None), the closure, generic
+    values and labels): the flattened order and the lines written."""
     order = ExecutionOrder(reader, rules, lists)
     steps = order.flatten()
-    node = ox.NamedNode(target(layer))
+    layer = derived_graph_iri(graph)
     written = 0
     if mapped is None:  # no mapper wrote the closure, generic values and labels: find them
         written += _write_text(store, node.value, reader.construct(rules.construct).decode("utf-8").splitlines(True))
@@ -163,24 +203,7 @@ def derive(store: Store, graph: str, target: Callable[[str], str],
         order.triples(graph), order.feature_triples(), order.feature_facts(graph), order.operation_facts(graph),
         instance_counts(reader, graph),
         [f"<{layer}> {sga('layerOf')} <{graph}> .\n", f"<{layer}> {sga('layerVersion')} {integer_literal(LAYER_VERSION)} .\n"]))
-    del order
-    if streamed:
-        written += blank_mapped or 0
-    elif store.capabilities.blank_node_writes:
-        # The quads that hold blank nodes go as quads (a blank node has no name SPARQL or a
-        # second text could give it), streamed: in one transaction when few, else in bulk calls
-        written += store.add_quads(lists.index_quads(node))
-        del lists  # the cells: the largest part of this function's memory
-        written += store.add_quads(ox.Quad(s, p, o, node) for s, p, o in reader.select(rules.blank_values))
-    else:  # a remote store: blank nodes cannot be written as they are, so the store copies them
-        before = store.count(node.value)
-        positions = _named_positions(lists, node, named) if named else None
-        store.update(_blank_updates(rules, target(graph), node.value, capabilities.join_order_prologue,
-                                    positions=positions is None))
-        for piece in positions or ():
-            store.update(piece)
-        written += store.count(node.value) - before
-    return DerivedLayer(layer, (mapped or 0) + written, steps)
+    return steps, written
 
 
 def instance_counts(reader: Reader, graph: str) -> Iterator[str]:

@@ -47,8 +47,11 @@ from __future__ import annotations
 
 import os
 import re
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -135,6 +138,10 @@ class RemoteStore:
         #: while a load is staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`): the in-memory
         #: store and the staging names it holds; every read or write naming one of them goes there
         self._local: tuple[Any, dict[str, str]] | None = None
+        #: while a load staged in the store runs its ``before_commit`` (:func:`~stepnc_graph.store.remote_load.replace_in_store`):
+        #: the client's in-memory copy of the program's staging graph and its name; reads naming it go there
+        self._copy: tuple[Any, str] | None = None
+        self._own = threading.local()  # .labels: this thread's reads go to the server (own_labels)
 
     def prepare_to_write(self) -> None:
         """Nothing to take: the endpoint orders concurrent updates itself."""
@@ -155,21 +162,35 @@ class RemoteStore:
         """One HTTP request and its answer's body (None when ``stream``): see :meth:`HttpClient.request`."""
         return self._http.request(method, url, idempotent=idempotent, stream=stream, **kwargs)
 
-    def _staged(self, graph: str | None = None, sparql: str = "", graphs: Iterable[Any] = ()) -> Any:
+    def _staged(self, graph: str | None = None, sparql: str = "", graphs: Iterable[Any] = (), write: bool = False) -> Any:
         """The in-memory store of a load staged in the client (:func:`~stepnc_graph.store.remote_load.replace_from_client`) when a
         request names one of its staging graphs -- as ``graph``, in ``sparql`` or among a query's
-        dataset ``graphs`` -- else None (the request goes to the server)."""
-        if self._local is None:
+        dataset ``graphs`` -- or, unless it would ``write``, the client's copy of a load staged in
+        the store (:attr:`_copy`) when it names that graph; else None (the request goes to the server)."""
+        if self._local is not None:
+            local, names = self._local[0], set(self._local[1].values())
+        elif self._copy is not None and not write and not getattr(self._own, "labels", False):
+            local, names = self._copy[0], {self._copy[1]}
+        else:
             return None
-        local, staging = self._local
-        names = set(staging.values())
         if graph in names or any(_value(g) in names for g in graphs) or any(n in sparql for n in names):
             return local
         return None
 
+    @contextmanager
+    def own_labels(self) -> Iterator[None]:
+        """Reads in this block, on this thread, go to the server, not to the client's copy of a
+        graph staged there (:attr:`_copy`): for answers whose blank node labels must be the store's
+        own (other threads go on reading the copy meanwhile)."""
+        self._own.labels = True
+        try:
+            yield
+        finally:
+            self._own.labels = False
+
     def update(self, sparql: str) -> None:
         """One SPARQL Update request (one transaction in the store)."""
-        if (local := self._staged(sparql=sparql)) is not None:
+        if (local := self._staged(sparql=sparql, write=True)) is not None:
             local.update(sparql)
             return
         self._request("POST", self.endpoint.update_url, idempotent=False, data=sparql.encode("utf-8"),
@@ -205,11 +226,18 @@ class RemoteStore:
                       headers={"Content-Type": _NQUADS})
 
     def _drop_quietly(self, graphs: Iterable[str]) -> None:
-        """Drop staging graphs; if the server is gone, a later load drops them once stale."""
-        try:
-            self.update(" ; ".join(f"DROP SILENT GRAPH <{g}>" for g in graphs))
-        except RemoteError:
-            pass
+        """Drop staging graphs, each by a request of its own, side by side (nothing is swapped in
+        any more: they need no one transaction, and a store may drop them on several cores; Virtuoso
+        7.2, a replicated 10k program's two: 0.57-0.98 s wall where one request took 0.96-1.04); if
+        the server is gone, a later load drops them once stale."""
+        def drop(graph: str) -> None:
+            try:
+                self.update(f"DROP SILENT GRAPH <{graph}>")
+            except RemoteError:
+                pass
+
+        with ThreadPoolExecutor(max_workers=4, thread_name_prefix="stepnc-graph drop") as pool:
+            list(pool.map(drop, dict.fromkeys(graphs)))
 
     def _drop_stale_staging(self) -> None:
         """Drop the staging graphs an interrupted load left (named as :data:`_STAGING_NAME`, older
@@ -228,12 +256,13 @@ class RemoteStore:
     def add_ntriples(self, graph: str, text: str, bulk: bool = False) -> None:
         if (local := self._staged(graph)) is not None:
             local.add_ntriples(graph, text, bulk)
-            return
+            if self._local is not None:
+                return  # else the client's copy of a graph staged in the store: the store's graph too
         for _, body in _batches([text], BATCH_BYTES):
             self._post_graph(graph, body)
 
     def add_turtle(self, graph: str, text: str) -> None:
-        if (local := self._staged(graph)) is not None:
+        if (local := self._staged(graph, write=True)) is not None:
             local.add_turtle(graph, text)
             return
         self._post_graph(graph, text.encode("utf-8"), _TURTLE)
