@@ -589,28 +589,40 @@ def test_list_positions_cost_a_load_little_however_long_the_list(tmp_path: Path)
         live.server.stop()
 
 
+def _loaded_new_and_again(store: RemoteStore, seen: Callable[[dict[str, Any]], str | None]) -> list[str]:
+    """Load the example into ``store`` new, then again (a replacement); what ``seen`` makes of
+    each request's keyword arguments, where it makes something."""
+    kept: list[str] = []
+    request = store._request
+
+    def recorded(method: str, url: str, **kwargs: Any) -> Any:
+        if (what := seen(kwargs)) is not None:
+            kept.append(what)
+        return request(method, url, **kwargs)
+
+    store._request = recorded  # type: ignore[method-assign]
+    for replace in (False, True):
+        sg.load(store, [EXAMPLE], base_iri=DATA + EXAMPLE.name, replace=replace)
+    return kept
+
+
 def test_a_load_staged_in_the_store_reads_the_program_from_the_clients_copy(tmp_path: Path) -> None:
     """On Virtuoso a load is staged in graphs of the store; the reference check and the derived
     layer's walks read the program from the client's copy of it (kept while it was sent), not by a
     dozen SELECTs of the staging graph the client waited for (10k instances: 2.2 s of a 7.2 s
     load). Only the process lists' cells are read from the store, whose labels name its nodes. The
     layer is the same (compared with the embedded store's by the tests above)."""
+    def staging_read(kwargs: dict[str, Any]) -> str | None:
+        form = kwargs.get("data")
+        if isinstance(form, list) and any(key == "default-graph-uri" and _STAGING_NAME.fullmatch(value)
+                                          for key, value in form):
+            return str(dict(form)["query"])  # a read of the program's staging graph
+        return None
+
     live = start("virtuoso", tmp_path / "server")
     try:
         with live.open() as store:
-            asked: list[str] = []
-            request = store._request
-
-            def counted(method: str, url: str, **kwargs: Any) -> Any:
-                form = kwargs.get("data")
-                if isinstance(form, list) and any(key == "default-graph-uri" and _STAGING_NAME.fullmatch(value)
-                                                  for key, value in form):
-                    asked.append(dict(form)["query"])  # a read of the program's staging graph
-                return request(method, url, **kwargs)
-
-            store._request = counted  # type: ignore[method-assign]
-            for replace in (False, True):
-                sg.load(store, [EXAMPLE], base_iri=DATA + EXAMPLE.name, replace=replace)
+            asked = _loaded_new_and_again(store, staging_read)
         assert len(asked) == 2 and all("rdf-syntax-ns#rest>" in q for q in asked), asked
     finally:
         live.server.stop()
@@ -621,20 +633,15 @@ def test_scratch_graphs_are_dropped_outside_the_transaction_log_where_the_store_
     in some half the server CPU outside its transaction log (``DEFINE sql:log-enable 2``,
     store/behaviour.SCRATCH_PROLOGUES); a swap stays one transaction. After a new load and a
     replacement no scratch graph is left, and the program is there in full."""
+    def an_update(kwargs: dict[str, Any]) -> str | None:
+        if kwargs.get("headers", {}).get("Content-Type") == "application/sparql-update":
+            return str(kwargs["data"].decode("utf-8"))
+        return None
+
     live = start("virtuoso", tmp_path / "server")
     try:
         with live.open() as store:
-            updates: list[str] = []
-            request = store._request
-
-            def recorded(method: str, url: str, **kwargs: Any) -> Any:
-                if kwargs.get("headers", {}).get("Content-Type") == "application/sparql-update":
-                    updates.append(kwargs["data"].decode("utf-8"))
-                return request(method, url, **kwargs)
-
-            store._request = recorded  # type: ignore[method-assign]
-            for replace in (False, True):
-                sg.load(store, [EXAMPLE], base_iri=DATA + EXAMPLE.name, replace=replace)
+            updates = _loaded_new_and_again(store, an_update)
             swaps = [u for u in updates if "ADD SILENT GRAPH" in u]
             swapped = {g for u in swaps for g in re.findall(r"ADD SILENT GRAPH <([^>]+)>", u)}
             unlogged = {g for u in updates if u.startswith("DEFINE sql:log-enable 2\nDROP SILENT GRAPH <")
