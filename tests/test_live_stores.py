@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -624,34 +623,5 @@ def test_a_load_staged_in_the_store_reads_the_program_from_the_clients_copy(tmp_
         with live.open() as store:
             asked = _loaded_new_and_again(store, staging_read)
         assert len(asked) == 2 and all("rdf-syntax-ns#rest>" in q for q in asked), asked
-    finally:
-        live.server.stop()
-
-
-def test_scratch_graphs_are_dropped_outside_the_transaction_log_where_the_store_can(tmp_path: Path) -> None:
-    """Virtuoso drops a scratch graph (the staging graphs after their swap, the probe of doubles)
-    in some half the server CPU outside its transaction log (``DEFINE sql:log-enable 2``,
-    store/behaviour.SCRATCH_PROLOGUES); a swap stays one transaction. After a new load and a
-    replacement no scratch graph is left, and the program is there in full."""
-    def an_update(kwargs: dict[str, Any]) -> str | None:
-        if kwargs.get("headers", {}).get("Content-Type") == "application/sparql-update":
-            return str(kwargs["data"].decode("utf-8"))
-        return None
-
-    live = start("virtuoso", tmp_path / "server")
-    try:
-        with live.open() as store:
-            updates = _loaded_new_and_again(store, an_update)
-            swaps = [u for u in updates if "ADD SILENT GRAPH" in u]
-            swapped = {g for u in swaps for g in re.findall(r"ADD SILENT GRAPH <([^>]+)>", u)}
-            unlogged = {g for u in updates if u.startswith("DEFINE sql:log-enable 2\nDROP SILENT GRAPH <")
-                        for g in re.findall(r"DROP SILENT GRAPH <([^>]+)>", u)}
-            assert len(swaps) == 2 and len(swapped) >= 4 and swapped <= unlogged, (swapped, unlogged)
-            assert not any("log-enable" in u for u in swaps), swaps
-            assert not [g for g in store._all_graphs() if _STAGING_NAME.fullmatch(g)]
-            assert listed_graphs(store) == [DATA + EXAMPLE.name]
-            local = sg.open_store(memory=True)
-            sg.load(local, [EXAMPLE], base_iri=DATA + EXAMPLE.name)
-            assert store.count(DATA + EXAMPLE.name) == local.count(DATA + EXAMPLE.name) > 0
     finally:
         live.server.stop()

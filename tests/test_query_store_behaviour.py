@@ -9,7 +9,7 @@ import dataclasses
 import pytest
 
 from stepnc_graph.querying.query import known_wrong_answers, library
-from stepnc_graph.store.behaviour import BEHAVIOURS, behaviours, lacks, scratch_prologue, wrong_answers
+from stepnc_graph.store.behaviour import BEHAVIOURS, behaviours, lacks, wrong_answers
 from stepnc_graph.store.contract import Capabilities
 from stepnc_graph.store.remote import open_remote
 
@@ -35,9 +35,6 @@ def test_a_behaviour_applies_by_the_server_header_only() -> None:
     assert not behaviours("MyProxy in front of Virtuoso/07.20")  # the header names the store first
     assert lacks(VIRTUOSO, "ordered_group_concat") and not lacks("Oxigraph/0.5.2", "ordered_group_concat")
     assert wrong_answers(VIRTUOSO, "operations-per-feature") and not wrong_answers(VIRTUOSO, "tool-changes")
-    # a scratch graph dropped outside the transaction log: the store's own words, for it alone
-    assert scratch_prologue(VIRTUOSO) == "DEFINE sql:log-enable 2"
-    assert scratch_prologue("Oxigraph/0.5.2") == scratch_prologue(None) == scratch_prologue("MyProxy in front of Virtuoso/07.20") == ""
 
 
 @pytest.mark.parametrize("server", SERVERS)

@@ -90,20 +90,6 @@ def blank_node_iri_prefix(server: str | None) -> str:
     return next((prefix for pattern, prefix in BLANK_NODE_IRIS if server is not None and pattern.match(server)), "")
 
 
-#: stores that drop a scratch graph (a staging graph after its swap, a probe graph) cheaper outside
-#: their transaction log, and the words that ask for it: Virtuoso 7.2, a graph of 150k triples
-#: (three rounds on an idle machine), 0.64-0.72 server CPU-s with ``DEFINE sql:log-enable 2`` (no
-#: log, each row committed by itself) against 1.46-2.20 for a plain DROP. A scratch graph needs no
-#: transaction: nothing reads it, and one a crash leaves half dropped is dropped again once stale.
-SCRATCH_PROLOGUES: tuple[tuple[re.Pattern[str], str], ...] = ((VIRTUOSO, "DEFINE sql:log-enable 2"),)
-
-
-def scratch_prologue(server: str | None) -> str:
-    """What a store with this ``Server`` header takes before an update of a scratch graph to
-    write it without its transaction log ('' for none)."""
-    return next((words for pattern, words in SCRATCH_PROLOGUES if server is not None and pattern.match(server)), "")
-
-
 def wrong_answers(server: str | None, query: str) -> list[Behaviour]:
     """The behaviours that may change the rows of the library query named ``query``."""
     return [b for b in behaviours(server) if query in b.queries]

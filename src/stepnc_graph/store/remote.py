@@ -60,7 +60,7 @@ import pyoxigraph as ox
 from stepnc_graph.store.bindings import bind_in_groups
 from stepnc_graph.core.naming import STAGING, graph_layout, refuse_strangers
 from stepnc_graph.store import StoreError
-from stepnc_graph.store.behaviour import blank_node_iri_prefix, join_order_prologue, lacks, scratch_prologue
+from stepnc_graph.store.behaviour import blank_node_iri_prefix, join_order_prologue, lacks
 from stepnc_graph.store.contract import Capabilities, Chunk
 from stepnc_graph.store.answers import (
     RemoteError,
@@ -229,13 +229,10 @@ class RemoteStore:
         """Drop staging graphs, each by a request of its own, side by side (nothing is swapped in
         any more: they need no one transaction, and a store may drop them on several cores; Virtuoso
         7.2, a replicated 10k program's two: 0.57-0.98 s wall where one request took 0.96-1.04); if
-        the server is gone, a later load drops them once stale. Outside the store's transaction
-        log where it can (:func:`~stepnc_graph.store.behaviour.scratch_prologue`)."""
-        prologue = scratch_prologue(self.server)
-
+        the server is gone, a later load drops them once stale."""
         def drop(graph: str) -> None:
             try:
-                self.update(f"{prologue}\nDROP SILENT GRAPH <{graph}>" if prologue else f"DROP SILENT GRAPH <{graph}>")
+                self.update(f"DROP SILENT GRAPH <{graph}>")
             except RemoteError:
                 pass
 
