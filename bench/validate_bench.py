@@ -92,12 +92,11 @@ import json, sys, time
 t0 = time.perf_counter(); c0 = time.process_time()
 from stepnc_graph.loading.loader import load_paths
 from stepnc_graph.validation import compile_shapes, shape_files, throwaway_store
-from stepnc_graph.validation.throwaway import HOLD_BYTES, input_bytes
+from stepnc_graph.validation.throwaway import input_bytes, properties_kept
 with throwaway_store([sys.argv[1]]) as store:  # validate()'s load of a file: in memory, or on disk if large
     shapes = compile_shapes(shape_files())
-    held = store.path is None and (shapes.reads_known or input_bytes([sys.argv[1]]) >= HOLD_BYTES)  # as validate()
     load_paths(store, [sys.argv[1]], lenient=True, derived=False, positions=shapes.reads_positions(),
-               reads=shapes.properties_read() if held else None)
+               reads=properties_kept(store, shapes, input_bytes([sys.argv[1]])))  # as validate()
     print(json.dumps({"load_s": time.perf_counter() - t0, "load_cpu": time.process_time() - c0}))
 """
 

@@ -35,8 +35,8 @@ from stepnc_graph.validation.runner import refuse_service, run
 from stepnc_graph.validation.rdfdata import DataError, RdfLoad, load_rdf, rdf_format
 from stepnc_graph.validation.report import SEVERITIES, Result, ValidationReport
 from stepnc_graph.validation.shapes import RDF_FIRST, IllFormedShapes, ShapesError, UnsupportedShapes
-from stepnc_graph.validation.throwaway import add_shapes_graph, rdf_graph, throwaway_store
-from stepnc_graph.validation import throwaway
+from stepnc_graph.validation.throwaway import (add_shapes_graph, input_bytes, properties_kept, rdf_graph,
+                                               throwaway_store)
 
 if TYPE_CHECKING:  # the loader is imported only when a file is validated
     from stepnc_graph.loading.common import LoadResult
@@ -120,7 +120,7 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
 
     rdf = [p for p in paths if rdf_format(p, programs=iso_shapes) is not None and not p.is_dir()]
     programs = [p for p in paths if p not in rdf]
-    size = throwaway.input_bytes(paths)
+    size = input_bytes(paths)
     with throwaway_store(paths, size) as store:
         if needs_shapes:
             add_shapes_graph(store.oxigraph, shapes)
@@ -129,11 +129,8 @@ def _validate_files(paths: list[Path], shapes: CompiledShapes, checks: list[Chec
             phase(f"loading {len(programs):,} file(s): {100 * position // max(total, 1)} %")
 
         read(0, 1)
-        # in memory, the attributes no check reads are left out (on disk, their lines are not held
-        # back); a small program is loaded whole unless what the checks read costs nothing to know
-        # (the shipped checks: the build worked it out), see throwaway.HOLD_BYTES
-        held = store.path is None and (shapes.reads_known or size >= throwaway.HOLD_BYTES)
-        reads = shapes.properties_read() if held else None
+        # the attributes no check reads are left out where that pays (throwaway.properties_kept)
+        reads = properties_kept(store, shapes, size)
         loaded = load(store, programs, lenient=lenient, derived=False, positions=shapes.reads_positions(),
                       edition=edition, progress=read, stdin_graph=STDIN_GRAPH, reads=reads) if programs else []
         diagnostics = {r.graph: r.diagnostics for r in loaded}

@@ -63,6 +63,14 @@ MEMORY_VALIDATION_BYTES = 16_000_000
 HOLD_BYTES = 1_000_000
 
 
+def properties_kept(store: Any, shapes: CompiledShapes, size: int) -> frozenset[str] | None:
+    """The properties the throw-away graph of input of ``size`` bytes keeps (None: every one): in
+    memory, those the checks read, unless what they read is not known yet and the input is small
+    (:data:`HOLD_BYTES`); on disk every one (the lines of the others are not held back there)."""
+    held = store.path is None and (shapes.reads_known or size >= HOLD_BYTES)
+    return shapes.properties_read() if held else None
+
+
 def input_bytes(paths: Sequence[str | Path]) -> int:
     """The size of the files to validate, as the load will find them (standard input counts 0)."""
     from stepnc_graph.loading.sources import STDIN_GRAPH, plan_sources
